@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Installs fracvi's build and test dependencies from Debian 12 packages.
+# Idempotent: packages already present are skipped; apt is only touched when something is missing.
+# Must run as root (or with sudo available) on a fresh machine.
+set -euo pipefail
+
+packages=(
+  cmake g++ make ninja-build pkg-config   # build
+  libeigen3-dev                           # linear algebra, AutoDiff module
+  libboost-dev                            # Boost.Math (special functions, tanh_sinh), Boost.Odeint
+  libtomlplusplus-dev                     # problem files (TOML)
+  libcli11-dev                            # command line
+  nlohmann-json3-dev                      # summary.json output
+  libgtest-dev libgmock-dev               # unit tests
+  libbenchmark-dev                        # benchmarks (bench/, not part of pass/fail)
+  clang-format                            # formatting check
+  python3 python3-numpy python3-matplotlib python3-pytest pybind11-dev  # Python module and plots
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then
+  if command -v sudo >/dev/null 2>&1; then SUDO="sudo"; else
+    echo "install-deps: missing packages (${missing[*]}) and not root; run as root" >&2
+    exit 1
+  fi
+fi
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
