@@ -1,4 +1,55 @@
+// fracvi: the command-line front end. Each subcommand lives in its own *_command.cpp.
 #include <iostream>
-int main() {
-  std::cout << "fracvi\n";
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+
+int main(int argc, char** argv) {
+  using namespace fracvi::cli;
+  CLI::App app{
+      "fracvi: fractional variational integrators for M x'' + R D^(2 alpha) x + grad U(x, t) = "
+      "f(t)\n(Jimenez & Ober-Bloebaum). alpha is the Lagrangian order; the damping order is 2 "
+      "alpha.",
+      "fracvi"};
+  app.require_subcommand(1);
+  app.fallthrough(false);
+  std::vector<Command> commands{add_run_command(app), add_weights_command(app),
+                                add_derivative_command(app)};
+
+  std::string known;
+  bool is_known = false;
+  for (const auto& c : commands) {
+    known += (known.empty() ? "" : ", ") + c.app->get_name();
+    is_known = is_known || (argc > 1 && c.app->get_name() == argv[1]);
+  }
+  if (argc > 1 && argv[1][0] != '-' && !is_known) {
+    std::cerr << "fracvi: unknown command '" << argv[1] << "' (commands: " << known
+              << "; see fracvi --help)\n";
+    return kExitBadInput;
+  }
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    // Which subcommand failed, so that the line names it.
+    std::string where = "fracvi";
+    for (const auto* sub : app.get_subcommands()) where += " " + sub->get_name();
+    std::cerr << where << ": " << e.what() << " (see " << where << " --help)\n";
+    return kExitBadInput;
+  }
+
+  for (auto& command : commands) {
+    if (!command.app->parsed()) continue;
+    try {
+      return command.run();
+    } catch (const UsageError& e) {
+      std::cerr << "fracvi " << command.app->get_name() << ": " << e.what() << '\n';
+      return kExitBadInput;
+    }
+  }
+  return kExitBadInput;
 }

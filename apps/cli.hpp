@@ -1,0 +1,39 @@
+// Shared pieces of the fracvi command line: error reporting and number formatting.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace fracvi::cli {
+
+/// Bad input from the user: reported as one line on stderr, exit status 2, nothing on stdout.
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+inline constexpr int kExitSuccess = 0;
+inline constexpr int kExitNumericalFailure = 1;
+inline constexpr int kExitBadInput = 2;
+
+/// 17 significant digits: enough to round-trip every double.
+inline std::string format_number(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+/// Each command registers itself on the app and returns the function that runs it.
+struct Command {
+  CLI::App* app;
+  std::function<int()> run;
+};
+
+Command add_weights_command(CLI::App& parent);
+Command add_derivative_command(CLI::App& parent);
+Command add_run_command(CLI::App& parent);
+
+}  // namespace fracvi::cli

@@ -1,0 +1,13 @@
+// Drawing the PNG plots of a run with matplotlib (python/fracvi/plot.py under Debian's python3).
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+namespace fracvi::cli {
+
+/// Draws trajectory.png, phase.png and energy.png into `dir`. Returns "" on success, otherwise a
+/// one-line note saying why there are no plots (the data files are written regardless).
+std::string draw_plots(const std::filesystem::path& dir, bool quiet);
+
+}  // namespace fracvi::cli

@@ -1,0 +1,103 @@
+// The memory of the fractional damping term, behind one small interface.
+//
+// The damping sum of `DiscEqs` is Σ_{n=0}^{k} α_n Σ_{p=0}^{k−n} α_p x̃_{k−n−p} = Σ_{m=0}^{k} c_m
+// x̃_{k−m} with c = gl_weights(2α), the coefficients of (1 − ζ)^{2α} (DESIGN §3.1): one convolution.
+// A History receives x̃_0, x̃_1, … one at a time and returns that convolution for the latest index.
+// The mirror equation's forward-running sum Σ_{m=0}^{N−k} c_m ỹ_{k+m} is the same object fed in
+// reverse order (ỹ_N first).
+//
+//  * DirectHistory: stores every x̃ and sums directly, O(k·d) per step, O(N·d) memory.
+//  * LocalHistory: for integer damping orders 2α ∈ {0, 1, 2} the weights terminate
+//    ((1 − ζ)^{2α} is a polynomial), so only the last 2α + 1 values are kept. For α = 1/2 this is
+//    Lemma 5.3: Σ c_m x̃_{k−m} = x̃_k − x̃_{k−1}.
+//  * (later) FastHistory: sum-of-exponentials compression of the tail (DESIGN §6), same interface.
+//
+// push() and sum() never allocate and never throw; all storage is reserved at construction.
+#pragma once
+
+#include <Eigen/Dense>
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+namespace fracvi {
+
+class History {
+ public:
+  virtual ~History() = default;
+
+  /// Appends x̃_k, where k = size() before the call. Precondition: size() < capacity().
+  virtual void push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) = 0;
+  /// out = Σ_{m=0}^{k} c_m x̃_{k−m} for the last pushed index k (out has size d).
+  /// Precondition: size() ≥ 1.
+  virtual void sum(Eigen::Ref<Eigen::VectorXd> out) const = 0;
+  /// Forgets all pushed values (capacity is kept).
+  virtual void clear() = 0;
+
+  /// Number of values pushed since construction or clear().
+  [[nodiscard]] virtual std::size_t size() const = 0;
+  /// Maximum number of pushes between clears.
+  [[nodiscard]] virtual std::size_t capacity() const = 0;
+  [[nodiscard]] virtual Eigen::Index dimension() const = 0;
+  /// The order 2α of the weights (1 − ζ)^{2α}.
+  [[nodiscard]] virtual double order() const = 0;
+};
+
+/// All x̃ kept, exact convolution with c = gl_weights(order). O(k·d) per sum.
+class DirectHistory final : public History {
+ public:
+  /// Throws std::invalid_argument if order is not finite, dimension < 1 or capacity < 1.
+  DirectHistory(double order, Eigen::Index dimension, std::size_t capacity);
+
+  void push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) override;
+  void sum(Eigen::Ref<Eigen::VectorXd> out) const override;
+  void clear() override { size_ = 0; }
+  [[nodiscard]] std::size_t size() const override { return size_; }
+  [[nodiscard]] std::size_t capacity() const override { return weights_.size(); }
+  [[nodiscard]] Eigen::Index dimension() const override { return dimension_; }
+  [[nodiscard]] double order() const override { return order_; }
+  [[nodiscard]] const std::vector<double>& weights() const { return weights_; }
+
+ private:
+  double order_;
+  Eigen::Index dimension_;
+  std::vector<double> weights_;  // c_0 … c_{capacity−1}
+  std::vector<double> values_;   // row-major capacity × d: x̃_j at values_[j·d]
+  std::size_t size_ = 0;
+};
+
+/// Integer damping orders 2α ∈ {0, 1, 2}: the weights are the binomial row (1, −1)^… and vanish
+/// after index 2α, so only a window of 2α + 1 values is kept (unbounded capacity).
+class LocalHistory final : public History {
+ public:
+  /// Throws std::invalid_argument unless order ∈ {0, 1, 2} and dimension ≥ 1.
+  LocalHistory(double order, Eigen::Index dimension);
+
+  void push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) override;
+  void sum(Eigen::Ref<Eigen::VectorXd> out) const override;
+  void clear() override { size_ = 0; }
+  [[nodiscard]] std::size_t size() const override { return size_; }
+  [[nodiscard]] std::size_t capacity() const override;
+  [[nodiscard]] Eigen::Index dimension() const override { return window_.rows(); }
+  [[nodiscard]] double order() const override { return static_cast<double>(width_ - 1); }
+
+ private:
+  int width_;               // 2α + 1
+  double weights_[3];       // c_0 … c_{2α}
+  Eigen::MatrixXd window_;  // d × width, column (j mod width) holds x̃_j
+  std::size_t size_ = 0;
+};
+
+enum class HistoryKind {
+  kAuto,    ///< LocalHistory for integer 2α, DirectHistory otherwise
+  kDirect,  ///< DirectHistory always (e.g. to check Lemma 5.3 against the full sum)
+};
+
+/// The history for damping order `order` = 2α, able to take `capacity` pushes.
+std::unique_ptr<History> make_history(HistoryKind kind, double order, Eigen::Index dimension,
+                                      std::size_t capacity);
+
+/// True if `order` is 0, 1 or 2 (the weights of (1 − ζ)^order terminate).
+bool is_local_order(double order);
+
+}  // namespace fracvi

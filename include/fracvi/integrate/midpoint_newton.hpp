@@ -1,0 +1,67 @@
+// Newton's method for the implicit equation of one midpoint step (internal; public only so that
+// benchmarks and baselines can use the very same solver).
+//
+// Every implicit step in fracvi has the form
+//
+//     A Δ + (h²/2) [∇U(a + Δ/2, τ) − f(τ)] = c,
+//
+// for the increment Δ = u − a from the known point a to the unknown point u: A = M for the x- and
+// y-equations of `DiscEqs` (c = h p⁺_k in the momentum form, integrator.hpp), A = M + (h/2)R for
+// the implicit midpoint rule with midpoint damping (c = h M v_k). Its Jacobian is
+// J = A + (h²/4) ∇²U(a + Δ/2, τ).
+//
+// Solving for the increment rather than for u keeps round-off out of the momenta: the right-hand
+// side c = O(h) carries no large cancelling terms (solving A u = A a + c would leave a residual of
+// ε‖A a‖, i.e. a momentum error ε‖a‖/h per step).
+//
+// All workspace is allocated in the constructor; solve() does not allocate or throw.
+#pragma once
+
+#include <Eigen/Dense>
+
+#include "fracvi/integrate/integrator.hpp"
+#include "fracvi/model/potential.hpp"
+
+namespace fracvi::internal {
+
+struct NewtonReport {
+  Status status = Status::kSuccess;  ///< kSuccess, kNewtonFailure or kNonFinite
+  int iterations = 0;
+  double correction = 0.0;  ///< ‖δ‖_∞ of the last correction
+  double tolerance = 0.0;   ///< the bound it had to meet
+};
+
+class MidpointNewton {
+ public:
+  /// potential may be null (U ≡ 0). If it is null or has a constant Hessian, J is formed and
+  /// factored here, once (Hessian taken at (0, t_hessian)), and solve() takes exactly one
+  /// correction from the initial guess: the equation is linear, so that is its exact solution.
+  MidpointNewton(Eigen::MatrixXd A, double h, const Potential* potential,
+                 const NewtonOptions& options, double t_hessian = 0.0);
+
+  /// Solves for the increment Δ, starting from the guess in `increment`. forcing_tau is f(τ) or
+  /// null (f ≡ 0). Convergence: ‖δ‖_∞ ≤ atol + rtol · max(‖a + Δ‖_∞, ‖a‖_∞), δ the last
+  /// correction (already applied).
+  NewtonReport solve(const Eigen::Ref<const Eigen::VectorXd>& a, double tau,
+                     const Eigen::Ref<const Eigen::VectorXd>& c, const Eigen::VectorXd* forcing_tau,
+                     Eigen::Ref<Eigen::VectorXd> increment) noexcept;
+
+  /// g = ∇U(z, τ) − f(τ) (zero potential and forcing allowed).
+  void effective_gradient(const Eigen::Ref<const Eigen::VectorXd>& z, double tau,
+                          const Eigen::VectorXd* forcing_tau, Eigen::Ref<Eigen::VectorXd> g) const;
+
+  [[nodiscard]] bool is_linear() const { return linear_; }
+
+ private:
+  Eigen::MatrixXd A_;
+  double half_h2_;     // h²/2
+  double quarter_h2_;  // h²/4
+  const Potential* potential_;
+  NewtonOptions options_;
+  bool linear_;
+  Eigen::MatrixXd hessian_, jacobian_;
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
+  Eigen::VectorXd mid_, grad_, residual_, delta_;
+};
+
+}  // namespace fracvi::internal

@@ -1,0 +1,70 @@
+// The result of a run: grid, states, diagnostics, statistics and a status (DESIGN §4).
+//
+// States are row-major (N+1) × d contiguous arrays: row k is x_k, and the buffer can be handed to
+// NumPy without a copy. If a run stops early, the rows 0 … steps_done are the trajectory computed
+// so far (integrate() and Integrator::take_solution() drop the rows that were never reached).
+//
+// Diagnostics (docs/theory/start_step.md §4):
+//   energy[k]      E_k = ½ v_kᵀ M v_k + U(x_k, t_k)       (no −f·x term)
+//   dissipated[k]  W_k = Σ_{j<k} (h/2)(F_j·v_j + F_{j+1}·v_{j+1}) + (h²/8)(F_kᵀM⁻¹F_k − F_0ᵀM⁻¹F_0)
+//                        − Σ_{j<k} f(t_{j+½})·(x_{j+1} − x_j)
+//                        − Σ_{j<k} [U(x̄_j, t_{j+1}) − U(x̄_j, t_j)]    (time-dependent U only)
+//                  with F_k = R h^{−2α} Σ c_m x̃_{k−m} the discrete damping force and x̄_j the
+//                  midpoint. W_k is the energy removed by damping, minus the energy put in by f
+//                  and by the explicit time dependence of U.
+//   balance[k]     E_k + W_k − E_0. It equals Σ_{j<k} δ_j with δ_j the midpoint-quadrature defect
+//   of
+//                  U along step j: exactly zero (to round-off and Newton tolerance) when U is
+//                  quadratic and time-independent, whatever R, α, f; O(h³) per step, O(h²) on a
+//                  fixed interval otherwise.
+#pragma once
+
+#include <Eigen/Dense>
+#include <cstddef>
+#include <limits>
+#include <string>
+#include <string_view>
+
+namespace fracvi {
+
+using RowMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+enum class Status {
+  kRunning,        ///< steps remain (hand-stepped Integrator only)
+  kSuccess,        ///< all N steps done
+  kNewtonFailure,  ///< Newton did not reach the tolerance within max_iterations
+  kNonFinite,      ///< a NaN or infinity appeared (residual, iterate, state or diagnostics)
+  kCallbackError,  ///< the potential or the forcing threw an exception (its what() is in message)
+};
+
+std::string_view to_string(Status status);
+
+struct Solution {
+  Eigen::VectorXd t;  ///< t_k, k = 0 … steps_done
+  RowMatrixXd x;      ///< positions, (steps_done + 1) × d
+  RowMatrixXd v;      ///< velocities v_k = M⁻¹ p_k from the grid momentum (start_step.md §2)
+
+  Eigen::VectorXd energy;      ///< E_k (NaN with options.diagnostics = false)
+  Eigen::VectorXd dissipated;  ///< W_k (idem)
+  Eigen::VectorXd balance;     ///< E_k + W_k − E_0 (idem)
+
+  Status status = Status::kRunning;
+  std::string message;  ///< empty on success; otherwise names the step, the time and the cause
+
+  std::size_t steps_done = 0;         ///< completed steps; rows 0 … steps_done are valid
+  std::size_t newton_iterations = 0;  ///< total over all steps (1 per step for linear problems)
+  std::size_t max_newton_iterations_per_step = 0;
+
+  /// max_k ‖y_k − x_{N−k}‖_∞ from the independent backward run of the mirror equation
+  /// (`DiscEqs`, second line); NaN if not computed (disabled, or the run did not succeed).
+  double mirror_error = std::numeric_limits<double>::quiet_NaN();
+  double max_balance_error = 0.0;  ///< max_k |balance[k]| (NaN with options.diagnostics = false)
+  double wall_time_seconds = 0.0;  ///< x-run plus mirror run
+
+  std::string method;      ///< e.g. "fvi-gl"
+  int declared_order = 0;  ///< Method::declared_order() for this model
+
+  [[nodiscard]] bool ok() const { return status == Status::kSuccess; }
+};
+
+}  // namespace fracvi

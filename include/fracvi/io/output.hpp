@@ -1,0 +1,29 @@
+// What a run leaves behind: trajectory.csv, summary.json and problem.toml in one directory.
+#pragma once
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "fracvi/integrate/integrator.hpp"
+#include "fracvi/integrate/solution.hpp"
+#include "fracvi/io/problem_file.hpp"
+
+namespace fracvi {
+
+/// The initial value problem of a validated spec: the expression potential (with the force
+/// folded in as −f(t)·x), M, R, α, convention, initial data, grid.
+InitialValueProblem make_initial_value_problem(const ProblemSpec& spec);
+IntegratorOptions make_integrator_options(const ProblemSpec& spec);
+
+/// summary.json's content: status, message, steps, final state, diagnostics, statistics and the
+/// fully resolved problem (so the run can be reproduced from its output).
+nlohmann::json make_summary(const ProblemSpec& spec, const Solution& solution);
+
+/// Writes trajectory.csv (header `t,x1..xd,v1..vd,energy,dissipated,balance`, every
+/// spec.every-th row and always the last computed one, 17 significant digits), summary.json and
+/// problem.toml into `dir` (created if needed). Files are written to temporaries and renamed, so
+/// a crash never leaves a half-written file under the final name.
+void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
+                      const Solution& solution);
+
+}  // namespace fracvi

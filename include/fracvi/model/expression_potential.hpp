@@ -1,0 +1,60 @@
+// A potential given as a formula, e.g. from a problem file: U(x, t) − f(t)·x.
+//
+// The formula is parsed once; value, gradient and Hessian come from the expression engine's exact
+// symbolic derivatives compiled into one tape (no finite differences). External forcing f(t)
+// enters as the time-dependent potential −f(t)·x (DESIGN §3.2), so the scheme evaluates it where
+// it evaluates U: at the midpoints of `DiscEqs`.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "fracvi/expression/expression.hpp"
+#include "fracvi/model/potential.hpp"
+
+namespace fracvi {
+
+class ExpressionPotential final : public Potential {
+ public:
+  /// The variables are x1..xd and t. `force` is empty (no forcing) or has d formulas in t.
+  /// Throws ExpressionError (with the column) for a malformed formula and std::invalid_argument
+  /// for a wrong number of force components.
+  ExpressionPotential(Eigen::Index dimension, const std::string& potential,
+                      const std::vector<std::string>& force = {});
+
+  /// The variable names x1..xd.
+  static std::vector<std::string> position_names(Eigen::Index dimension);
+
+  [[nodiscard]] Eigen::Index dimension() const override { return dimension_; }
+  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const override;
+  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+                Eigen::Ref<Eigen::VectorXd> g) const override;
+  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+               Eigen::Ref<Eigen::MatrixXd> H) const override;
+  [[nodiscard]] bool has_constant_hessian() const override {
+    return derivatives_.hessian_is_constant();
+  }
+  [[nodiscard]] bool is_time_dependent() const override { return time_dependent_; }
+
+  /// U(x, t) − f(t)·x as one expression.
+  [[nodiscard]] const Expression& expression() const { return derivatives_.expression(); }
+
+ private:
+  // Fills this thread's argument buffer (x1..xd, t) and returns it with its workspace. The
+  // workspace is per thread and per object, so concurrent const calls are safe and, after the
+  // first call on a thread, allocation-free.
+  struct Scratch {
+    std::vector<double> args;
+    std::vector<double> gradient;
+    CompiledDerivatives::Workspace workspace;
+  };
+  Scratch& scratch(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const;
+
+  Eigen::Index dimension_;
+  CompiledDerivatives derivatives_;
+  bool time_dependent_;
+  std::uint64_t id_;  // never reused, unlike the object's address
+};
+
+}  // namespace fracvi

@@ -1,0 +1,95 @@
+// The mechanical model of the paper (Cor. 4.4, `Damping`, generalised to any α and full matrices)
+//
+//     M x'' + R D^{2α} x + ∇U(x, t) = f(t),   x ∈ R^d,
+//
+// and the initial value problem posed on it.
+//
+// Conventions (DESIGN §2):
+//  * `alpha` is the paper's Lagrangian order α ∈ [0, 1]; the damping term has order 2α ∈ [0, 2]
+//    (damping_order()). α = 1/2 is viscous damping R x'; α = 3/4 is Bagley–Torvik R D^{3/2} x.
+//  * Riemann–Liouville vs Caputo: Caputo applies the memory operator to
+//        x̃(t) = x(t) − x(0) − [2α > 1] t v(0)          (nothing subtracted when 2α = 0),
+//    Riemann–Liouville to x itself. With zero initial data they coincide; for 2α = 1 (viscous
+//    damping) they coincide always. Riemann–Liouville with 2α > 1 and x(0) ≠ 0 is ill-posed (the
+//    damping force x(0) t^{−2α}/Γ(1−2α) is not integrable) and is rejected by validate().
+//  * Forcing f(t) enters as the time-dependent potential −f(t)·x: the scheme evaluates it where it
+//    evaluates U (midpoints (x_k + x_{k+1})/2 at t_{k+1/2}), so the discrete equations stay
+//    variational. The energy E = ½ vᵀMv + U(x, t) does not contain −f·x; the work of f is booked in
+//    the dissipated work instead (solution.hpp).
+#pragma once
+
+#include <Eigen/Dense>
+#include <cstddef>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
+#include "fracvi/model/potential.hpp"
+
+namespace fracvi {
+
+/// Meaning of the fractional damping derivative D^{2α} (DESIGN §2).
+enum class Convention {
+  kRiemannLiouville,  ///< the paper's operator (eq. `RL`); GL sums act on x itself
+  kCaputo,            ///< GL sums act on x − x(0) − [2α > 1] t v(0)
+};
+
+/// "riemann-liouville" / "caputo" (the names used by the CLI and problem files).
+std::optional<Convention> parse_convention(std::string_view name);
+std::string_view to_string(Convention convention);
+
+/// f(t) written into out (size d on entry). Must not allocate or throw if the step loop is to stay
+/// allocation-free.
+using Forcing = std::function<void(double t, Eigen::Ref<Eigen::VectorXd> out)>;
+
+/// M x'' + R D^{2α} x + ∇U(x, t) = f(t).
+struct MechanicalModel {
+  Eigen::MatrixXd mass;     ///< M, symmetric positive definite, d × d
+  Eigen::MatrixXd damping;  ///< R, symmetric positive semidefinite, d × d (zero: conservative)
+  double alpha = 0.5;       ///< Lagrangian order α ∈ [0, 1]; the damping order is 2α
+  /// Caputo is the default because it is well posed for all initial data; with zero initial data,
+  /// or α = 1/2, the two conventions give identical trajectories.
+  Convention convention = Convention::kCaputo;
+  std::shared_ptr<const Potential> potential;  ///< U; null means U ≡ 0
+  Forcing forcing;                             ///< f; empty means f ≡ 0
+
+  [[nodiscard]] Eigen::Index dimension() const { return mass.rows(); }
+  [[nodiscard]] double damping_order() const { return 2.0 * alpha; }
+  /// True when R is exactly zero (the scheme is then the conservative midpoint variational
+  /// integrator, order 2).
+  [[nodiscard]] bool is_undamped() const;
+};
+
+/// The initial value problem on the uniform grid t_k = t0 + k h, h = (t_end − t0)/steps.
+struct InitialValueProblem {
+  MechanicalModel model;
+  Eigen::VectorXd x0;  ///< x(t0)
+  Eigen::VectorXd v0;  ///< x'(t0)
+  double t0 = 0.0;
+  double t_end = 1.0;
+  std::size_t steps = 100;  ///< N ≥ 1
+
+  [[nodiscard]] double step_size() const { return (t_end - t0) / static_cast<double>(steps); }
+  /// t_k = t0 + k h, computed the same way everywhere (the mirror check relies on it).
+  [[nodiscard]] double time(double k) const { return t0 + k * step_size(); }
+};
+
+/// Thrown for invalid input, before any step is taken. The message names the field, its value and
+/// the rule, e.g. "model.mass is not symmetric positive definite (smallest eigenvalue -0.3)".
+class ValidationError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+/// Checks the model alone (sizes, finiteness, symmetry, definiteness, α range, potential
+/// dimension). Throws ValidationError.
+void validate(const MechanicalModel& model);
+
+/// Checks the model, the initial data and the grid, including the ill-posed combination
+/// Riemann–Liouville + 2α > 1 + x0 ≠ 0. Throws ValidationError.
+void validate(const InitialValueProblem& problem);
+
+}  // namespace fracvi

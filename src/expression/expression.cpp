@@ -1,0 +1,279 @@
+// Expression: parsing entry points, evaluation, derivatives, printing, polynomial degree.
+#include <algorithm>
+#include <charconv>
+#include <climits>
+#include <numbers>
+
+#include "graph.hpp"
+
+namespace fracvi {
+
+namespace internal {
+
+std::shared_ptr<const ExpressionData> make_expression_data(const Builder& builder, NodeId root,
+                                                           std::string text,
+                                                           std::vector<std::string> variables) {
+  auto data = std::make_shared<ExpressionData>();
+  data->nodes = extract(builder.nodes(), std::span(&root, 1));
+  data->root = root;
+  data->program = compile(data->nodes, variables.size(), root, {}, {});
+  data->depends.assign(variables.size(), false);
+  for (const Node& n : data->nodes)
+    if (n.op == Op::kVar) data->depends[static_cast<std::size_t>(n.b)] = true;
+  data->text = std::move(text);
+  data->variables = std::move(variables);
+  return data;
+}
+
+namespace {
+
+// Binding strength for printing: a child is parenthesised when it binds less tightly than its
+// position requires. Right operands of left-associative operators need strictly tighter
+// binding, so the printed text re-parses to the same tree (a - (b - c), a/(b*c)).
+constexpr int kPrecAdd = 1, kPrecMul = 2, kPrecUnary = 3, kPrecPow = 4, kPrecAtom = 5;
+
+int precedence(const Node& n) {
+  switch (n.op) {
+    case Op::kConst: return n.value < 0 ? kPrecUnary : kPrecAtom;
+    case Op::kAdd:
+    case Op::kSub: return kPrecAdd;
+    case Op::kMul:
+    case Op::kDiv: return kPrecMul;
+    case Op::kNeg: return kPrecUnary;
+    case Op::kPow:
+    case Op::kPowInt: return kPrecPow;
+    default: return kPrecAtom;
+  }
+}
+
+std::string format_number(double v) {
+  if (v == std::numbers::pi) return "pi";
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);  // shortest round-trip form
+  return std::string(buf, r.ptr);
+}
+
+class Printer {
+ public:
+  Printer(const std::vector<Node>& nodes, const std::vector<std::string>& variables)
+      : nodes_(nodes), variables_(variables) {}
+
+  void print(NodeId id, std::string& out) const {
+    const Node& n = nodes_[static_cast<std::size_t>(id)];
+    switch (n.op) {
+      case Op::kConst: out += format_number(n.value); return;
+      case Op::kVar: out += variables_[static_cast<std::size_t>(n.b)]; return;
+      case Op::kAdd:
+      case Op::kSub:
+      case Op::kMul:
+      case Op::kDiv: return left_chain(id, out);
+      case Op::kPow:
+        operand(n.a, kPrecAtom, out);
+        out += '^';
+        return operand(n.b, kPrecUnary, out);
+      case Op::kNeg: out += '-'; return operand(n.a, kPrecUnary, out);
+      case Op::kPowInt:
+        operand(n.a, kPrecAtom, out);
+        out += '^' + std::to_string(n.b);
+        return;
+      default:
+        out += function_name(n.op);
+        out += '(';
+        print(n.a, out);
+        out += ')';
+    }
+  }
+
+ private:
+  void operand(NodeId id, int min_prec, std::string& out) const {
+    const bool parens = precedence(nodes_[static_cast<std::size_t>(id)]) < min_prec;
+    if (parens) out += '(';
+    print(id, out);
+    if (parens) out += ')';
+  }
+  // a + b - c + ... is a left-deep tree as deep as it is long (a sum of 10^5 springs): walk
+  // its left spine in a loop instead of recursing.
+  void left_chain(NodeId id, std::string& out) const {
+    const int prec = precedence(nodes_[static_cast<std::size_t>(id)]);
+    std::vector<NodeId> spine;
+    NodeId cur = id;
+    for (;;) {
+      const Node& n = nodes_[static_cast<std::size_t>(cur)];
+      const bool infix =
+          n.op == Op::kAdd || n.op == Op::kSub || n.op == Op::kMul || n.op == Op::kDiv;
+      if (!infix || precedence(n) != prec) break;
+      spine.push_back(cur);
+      cur = n.a;
+    }
+    operand(cur, prec, out);
+    for (auto it = spine.rbegin(); it != spine.rend(); ++it) {
+      const Node& n = nodes_[static_cast<std::size_t>(*it)];
+      out += n.op == Op::kAdd ? " + " : n.op == Op::kSub ? " - " : n.op == Op::kMul ? "*" : "/";
+      operand(n.b, prec + 1, out);
+    }
+  }
+
+  const std::vector<Node>& nodes_;
+  const std::vector<std::string>& variables_;
+};
+
+constexpr long long kNotPolynomial = -1;
+
+std::optional<int> degree_in(const ExpressionData& d, const std::vector<bool>& in_set) {
+  const std::size_t n = d.nodes.size();
+  std::vector<long long> deg(n, 0);
+  std::vector<char> dep(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Node& node = d.nodes[i];
+    const auto ua = static_cast<std::size_t>(node.a), ub = static_cast<std::size_t>(node.b);
+    if (node.op == Op::kConst) continue;
+    if (node.op == Op::kVar) {
+      dep[i] = in_set[ub] ? 1 : 0;
+      deg[i] = dep[i];
+      continue;
+    }
+    dep[i] = static_cast<char>(dep[ua] || (is_binary(node.op) && dep[ub]));
+    if (!dep[i]) continue;  // a coefficient: degree 0
+    const long long da = deg[ua], db = is_binary(node.op) ? deg[ub] : 0;
+    const bool both = da != kNotPolynomial && db != kNotPolynomial;
+    long long r = kNotPolynomial;
+    switch (node.op) {
+      case Op::kAdd:
+      case Op::kSub: r = both ? std::max(da, db) : kNotPolynomial; break;
+      case Op::kMul: r = both ? da + db : kNotPolynomial; break;
+      case Op::kNeg: r = da; break;
+      case Op::kDiv: r = dep[ub] ? kNotPolynomial : da; break;
+      case Op::kPowInt:
+        r = (node.b >= 0 && da != kNotPolynomial) ? da * node.b : kNotPolynomial;
+        break;
+      default: break;  // transcendental or general power of something that varies
+    }
+    deg[i] = r == kNotPolynomial ? r : std::min<long long>(r, INT_MAX);
+  }
+  const long long root = deg[static_cast<std::size_t>(d.root)];
+  if (root == kNotPolynomial) return std::nullopt;
+  return static_cast<int>(root);
+}
+
+}  // namespace
+}  // namespace internal
+
+using internal::ExpressionData;
+
+Expression::Expression() {
+  internal::Builder builder(0);
+  data_ = internal::make_expression_data(builder, builder.constant(0.0), "0", {});
+}
+
+Expression::Expression(std::shared_ptr<const ExpressionData> data) : data_(std::move(data)) {}
+
+Expression Expression::parse(std::string_view text, std::vector<std::string> variables) {
+  internal::validate_variable_names(variables);
+  internal::Builder builder(variables.size());
+  const internal::NodeId root = internal::parse(text, variables, builder);
+  return Expression(
+      internal::make_expression_data(builder, root, std::string(text), std::move(variables)));
+}
+
+double Expression::operator()(std::span<const double> values) const {
+  if (values.size() != data_->variables.size())
+    throw std::invalid_argument("Expression: got " + std::to_string(values.size()) +
+                                " values for " + std::to_string(data_->variables.size()) +
+                                " variables");
+  // One buffer per thread, grown to the largest expression seen: no allocation after warm-up.
+  thread_local std::vector<double> scratch;
+  const internal::Program& p = data_->program;
+  if (scratch.size() < p.num_slots) scratch.resize(p.num_slots);
+  internal::fill_constants(p, scratch);
+  internal::run(p, p.value_code, values.data(), scratch.data());
+  return scratch[static_cast<std::size_t>(p.value_slot)];
+}
+
+Expression Expression::derivative(std::size_t var) const {
+  if (var >= data_->variables.size())
+    throw std::invalid_argument("Expression::derivative: variable index " + std::to_string(var) +
+                                " out of range (" + std::to_string(data_->variables.size()) +
+                                " variables)");
+  internal::Builder builder(data_->nodes, data_->variables.size());
+  const internal::NodeId d = builder.derivative(data_->root, var);
+  return Expression(internal::make_expression_data(builder, d, "", data_->variables));
+}
+
+Expression Expression::derivative(std::string_view variable) const {
+  const auto index = variable_index(variable);
+  if (!index)
+    throw std::invalid_argument("Expression::derivative: '" + std::string(variable) +
+                                "' is not a variable");
+  return derivative(*index);
+}
+
+std::string Expression::to_string() const {
+  std::string out;
+  internal::Printer(data_->nodes, data_->variables).print(data_->root, out);
+  return out;
+}
+
+const std::string& Expression::text() const {
+  return data_->text;
+}
+
+const std::vector<std::string>& Expression::variables() const {
+  return data_->variables;
+}
+
+std::optional<std::size_t> Expression::variable_index(std::string_view name) const {
+  const auto& v = data_->variables;
+  const auto it = std::find(v.begin(), v.end(), name);
+  if (it == v.end()) return std::nullopt;
+  return static_cast<std::size_t>(it - v.begin());
+}
+
+bool Expression::depends_on(std::size_t var) const {
+  return var < data_->depends.size() && data_->depends[var];
+}
+
+bool Expression::is_constant() const {
+  return data_->nodes[static_cast<std::size_t>(data_->root)].op == internal::Op::kConst;
+}
+
+std::optional<int> Expression::polynomial_degree() const {
+  return internal::degree_in(*data_, std::vector<bool>(data_->variables.size(), true));
+}
+
+std::optional<int> Expression::polynomial_degree(std::span<const std::size_t> vars) const {
+  std::vector<bool> in_set(data_->variables.size(), false);
+  for (std::size_t v : vars) {
+    if (v >= in_set.size())
+      throw std::invalid_argument("Expression::polynomial_degree: variable index " +
+                                  std::to_string(v) + " out of range");
+    in_set[v] = true;
+  }
+  return internal::degree_in(*data_, in_set);
+}
+
+bool Expression::is_polynomial_of_degree_at_most(int degree) const {
+  const auto d = polynomial_degree();
+  return d && *d <= degree;
+}
+
+std::size_t Expression::node_count() const {
+  return data_->nodes.size();
+}
+
+std::vector<Expression> parse_expressions(std::span<const std::string> texts,
+                                          const std::vector<std::string>& variables) {
+  std::vector<Expression> out;
+  out.reserve(texts.size());
+  for (std::size_t i = 0; i < texts.size(); ++i) {
+    try {
+      out.push_back(Expression::parse(texts[i], variables));
+    } catch (const ExpressionError& e) {
+      throw ExpressionError("component " + std::to_string(i + 1) + " of " +
+                                std::to_string(texts.size()) + ": " + e.reason(),
+                            e.expression(), e.column());
+    }
+  }
+  return out;
+}
+
+}  // namespace fracvi

@@ -1,0 +1,96 @@
+#include "fracvi/integrate/history.hpp"
+
+#include <cassert>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "fracvi/fractional/weights.hpp"
+
+namespace fracvi {
+
+bool is_local_order(double order) {
+  return order == 0.0 || order == 1.0 || order == 2.0;
+}
+
+DirectHistory::DirectHistory(double order, Eigen::Index dimension, std::size_t capacity)
+    : order_(order), dimension_(dimension) {
+  if (!std::isfinite(order)) {
+    throw std::invalid_argument("DirectHistory: order = " + std::to_string(order) +
+                                " must be finite");
+  }
+  if (dimension < 1 || capacity < 1) {
+    throw std::invalid_argument("DirectHistory: dimension = " + std::to_string(dimension) +
+                                " and capacity = " + std::to_string(capacity) + " must be >= 1");
+  }
+  weights_ = gl_weights(order, capacity);
+  values_.assign(capacity * static_cast<std::size_t>(dimension), 0.0);
+}
+
+void DirectHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
+  assert(size_ < capacity() && x_tilde.size() == dimension_);
+  Eigen::Map<Eigen::VectorXd>(values_.data() + size_ * static_cast<std::size_t>(dimension_),
+                              dimension_) = x_tilde;
+  ++size_;
+}
+
+void DirectHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
+  assert(size_ >= 1 && out.size() == dimension_);
+  // Σ_{m=0}^{k} c_m x̃_{k−m}, walking the stored values in memory order (j = k − m ascending).
+  const std::size_t k = size_ - 1;
+  const auto d = static_cast<std::size_t>(dimension_);
+  out.setZero();
+  for (std::size_t j = 0; j <= k; ++j) {
+    out += weights_[k - j] * Eigen::Map<const Eigen::VectorXd>(values_.data() + j * d, dimension_);
+  }
+}
+
+LocalHistory::LocalHistory(double order, Eigen::Index dimension) {
+  if (!is_local_order(order)) {
+    throw std::invalid_argument("LocalHistory: order = " + std::to_string(order) +
+                                " must be 0, 1 or 2 (use DirectHistory otherwise)");
+  }
+  if (dimension < 1) {
+    throw std::invalid_argument("LocalHistory: dimension = " + std::to_string(dimension) +
+                                " must be >= 1");
+  }
+  width_ = static_cast<int>(order) + 1;
+  // (1 − ζ)^0 = 1, (1 − ζ)^1 = 1 − ζ, (1 − ζ)^2 = 1 − 2ζ + ζ² (gl_weights gives the same, exactly).
+  const double rows[3][3] = {{1.0, 0.0, 0.0}, {1.0, -1.0, 0.0}, {1.0, -2.0, 1.0}};
+  for (int i = 0; i < 3; ++i) weights_[i] = rows[width_ - 1][i];
+  window_.setZero(dimension, width_);
+}
+
+std::size_t LocalHistory::capacity() const {
+  return static_cast<std::size_t>(-1);
+}
+
+void LocalHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
+  assert(x_tilde.size() == window_.rows());
+  window_.col(static_cast<Eigen::Index>(size_ % static_cast<std::size_t>(width_))) = x_tilde;
+  ++size_;
+}
+
+void LocalHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
+  assert(size_ >= 1 && out.size() == window_.rows());
+  // Lemma 5.3 for order 1: x̃_k − x̃_{k−1}; terms before x̃_0 are absent (the sums of `DiscEqs`
+  // start at index 0). Accumulated oldest first, in the same order as DirectHistory, so that both
+  // give bitwise identical sums (the dropped weights are exact zeros).
+  const std::size_t k = size_ - 1;
+  const auto w = static_cast<std::size_t>(width_);
+  const std::size_t first = k + 1 >= w ? k + 1 - w : 0;
+  out.setZero();
+  for (std::size_t j = first; j <= k; ++j) {
+    out += weights_[k - j] * window_.col(static_cast<Eigen::Index>(j % w));
+  }
+}
+
+std::unique_ptr<History> make_history(HistoryKind kind, double order, Eigen::Index dimension,
+                                      std::size_t capacity) {
+  if (kind == HistoryKind::kAuto && is_local_order(order)) {
+    return std::make_unique<LocalHistory>(order, dimension);
+  }
+  return std::make_unique<DirectHistory>(order, dimension, capacity);
+}
+
+}  // namespace fracvi

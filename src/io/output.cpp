@@ -1,0 +1,118 @@
+#include "fracvi/io/output.hpp"
+
+#include <charconv>
+#include <fstream>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "fracvi/integrate/integrator.hpp"
+#include "fracvi/model/expression_potential.hpp"
+
+namespace fracvi {
+
+InitialValueProblem make_initial_value_problem(const ProblemSpec& spec) {
+  InitialValueProblem p;
+  p.model.mass = spec.mass;
+  p.model.damping = spec.damping;
+  p.model.alpha = spec.alpha;
+  p.model.convention = *parse_convention(spec.convention);
+  p.model.potential =
+      std::make_shared<const ExpressionPotential>(spec.dim, spec.potential, spec.force);
+  p.x0 = spec.position;
+  p.v0 = spec.velocity;
+  p.t0 = spec.start;
+  p.t_end = spec.end;
+  p.steps = static_cast<std::size_t>(spec.steps);
+  return p;
+}
+
+IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
+  IntegratorOptions o;
+  o.newton.relative_tolerance = spec.newton_tolerance;
+  o.newton.max_iterations = spec.newton_max_iterations;
+  return o;
+}
+
+namespace {
+
+nlohmann::json row_json(const RowMatrixXd& m, Eigen::Index row) {
+  nlohmann::json a = nlohmann::json::array();
+  if (m.rows() == 0) return a;
+  for (Eigen::Index j = 0; j < m.cols(); ++j) a.push_back(m(row, j));
+  return a;
+}
+
+// JSON has no NaN: non-finite numbers become null.
+nlohmann::json number(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
+}
+
+void append_number(std::string& out, double v) {
+  char buf[32];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, 17);
+  out.append(buf, r.ptr);
+}
+
+void write_atomically(const std::filesystem::path& file, const std::string& content) {
+  const auto tmp = std::filesystem::path(file.string() + ".tmp");
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error("cannot write " + tmp.string());
+    out << content;
+    if (!out.flush()) throw std::runtime_error("error while writing " + tmp.string());
+  }
+  std::filesystem::rename(tmp, file);
+}
+
+}  // namespace
+
+nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
+  const Eigen::Index last = static_cast<Eigen::Index>(s.steps_done);
+  return {
+      {"status", s.ok() ? "success" : std::string(to_string(s.status))},
+      {"message", s.message},
+      {"steps", s.steps_done},
+      {"steps_requested", spec.steps},
+      {"final_time", s.t.size() ? number(s.t[last]) : nlohmann::json()},
+      {"final_position", row_json(s.x, last)},
+      {"final_velocity", row_json(s.v, last)},
+      {"final_energy", s.energy.size() ? number(s.energy[last]) : nlohmann::json()},
+      {"mirror_error", number(s.mirror_error)},
+      {"max_balance_error", number(s.max_balance_error)},
+      {"newton_iterations", s.newton_iterations},
+      {"max_newton_iterations_per_step", s.max_newton_iterations_per_step},
+      {"wall_seconds", s.wall_time_seconds},
+      {"method", s.method},
+      {"declared_order", s.declared_order},
+      {"problem", to_json(spec)},
+  };
+}
+
+void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
+                      const Solution& s) {
+  std::filesystem::create_directories(dir);
+  const Eigen::Index d = s.x.cols();
+  std::string csv = "t";
+  for (Eigen::Index i = 1; i <= d; ++i) csv += ",x" + std::to_string(i);
+  for (Eigen::Index i = 1; i <= d; ++i) csv += ",v" + std::to_string(i);
+  csv += ",energy,dissipated,balance\n";
+  const auto rows = static_cast<Eigen::Index>(s.steps_done) + 1;
+  csv.reserve(csv.size() + static_cast<std::size_t>(rows / spec.every + 1) *
+                               static_cast<std::size_t>(2 * d + 4) * 24);
+  for (Eigen::Index k = 0; k < rows && k < s.t.size(); ++k) {
+    if (k % spec.every != 0 && k != rows - 1) continue;
+    append_number(csv, s.t[k]);
+    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_number(csv, s.x(k, i));
+    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_number(csv, s.v(k, i));
+    csv += ',', append_number(csv, s.energy[k]);
+    csv += ',', append_number(csv, s.dissipated[k]);
+    csv += ',', append_number(csv, s.balance[k]);
+    csv += '\n';
+  }
+  write_atomically(dir / "trajectory.csv", csv);
+  write_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
+  write_atomically(dir / "problem.toml", to_toml(spec));
+}
+
+}  // namespace fracvi

@@ -1,0 +1,141 @@
+#include "fracvi/model/mechanical_model.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <array>
+#include <charconv>
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace fracvi {
+
+std::optional<Convention> parse_convention(std::string_view name) {
+  if (name == "riemann-liouville") return Convention::kRiemannLiouville;
+  if (name == "caputo") return Convention::kCaputo;
+  return std::nullopt;
+}
+
+std::string_view to_string(Convention convention) {
+  switch (convention) {
+    case Convention::kRiemannLiouville: return "riemann-liouville";
+    case Convention::kCaputo: return "caputo";
+  }
+  return "unknown";
+}
+
+bool MechanicalModel::is_undamped() const {
+  return damping.size() == 0 || (damping.array() == 0.0).all();
+}
+
+namespace {
+
+// Shortest representation that reads back to the same double ("-0.3", not "-0.29999999999999999").
+std::string fmt(double value) {
+  std::array<char, 64> buf{};
+  const auto result = std::to_chars(buf.data(), buf.data() + buf.size(), value);
+  return {buf.data(), result.ptr};
+}
+
+std::string shape(const Eigen::MatrixXd& m) {
+  return std::to_string(m.rows()) + " x " + std::to_string(m.cols());
+}
+
+[[noreturn]] void fail(const std::string& message) {
+  throw ValidationError(message);
+}
+
+// Round-off level below which asymmetry and negative eigenvalues are attributed to rounding
+// (matrices assembled as products, e.g. ΛᵀMΛ, are symmetric only to a few ulps × size).
+double roundoff_tolerance(const Eigen::MatrixXd& m) {
+  const double scale = m.size() == 0 ? 0.0 : m.cwiseAbs().maxCoeff();
+  return 100.0 * static_cast<double>(m.rows()) * std::numeric_limits<double>::epsilon() * scale;
+}
+
+void check_square_symmetric(const Eigen::MatrixXd& m, Eigen::Index d, const char* field) {
+  if (m.rows() != d || m.cols() != d) {
+    fail(std::string(field) + " is " + shape(m) + ", must be " + std::to_string(d) + " x " +
+         std::to_string(d) + " (the size of model.mass)");
+  }
+  if (!m.allFinite()) fail(std::string(field) + " has a non-finite entry");
+  const double asym = (m - m.transpose()).cwiseAbs().maxCoeff();
+  if (asym > roundoff_tolerance(m)) {
+    fail(std::string(field) + " is not symmetric (max |A - A^T| = " + fmt(asym) + ")");
+  }
+}
+
+double smallest_eigenvalue(const Eigen::MatrixXd& m) {
+  const Eigen::MatrixXd sym = 0.5 * (m + m.transpose());
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(sym, Eigen::EigenvaluesOnly);
+  return eig.eigenvalues().minCoeff();
+}
+
+void check_vector(const Eigen::VectorXd& v, Eigen::Index d, const char* field) {
+  if (v.size() != d) {
+    fail(std::string(field) + " has size " + std::to_string(v.size()) + ", must be " +
+         std::to_string(d) + " (the size of model.mass)");
+  }
+  if (!v.allFinite()) fail(std::string(field) + " has a non-finite entry");
+}
+
+}  // namespace
+
+void validate(const MechanicalModel& model) {
+  const Eigen::Index d = model.mass.rows();
+  if (d < 1 || model.mass.cols() != d) {
+    fail("model.mass is " + shape(model.mass) + ", must be square and non-empty");
+  }
+  check_square_symmetric(model.mass, d, "model.mass");
+  const double mass_min = smallest_eigenvalue(model.mass);
+  if (!(mass_min > 0.0) || Eigen::LLT<Eigen::MatrixXd>(model.mass).info() != Eigen::Success) {
+    fail("model.mass is not symmetric positive definite (smallest eigenvalue " + fmt(mass_min) +
+         ")");
+  }
+  check_square_symmetric(model.damping, d, "model.damping");
+  const double damping_min = smallest_eigenvalue(model.damping);
+  if (damping_min < -roundoff_tolerance(model.damping)) {
+    fail("model.damping is not symmetric positive semidefinite (smallest eigenvalue " +
+         fmt(damping_min) + ")");
+  }
+  if (!std::isfinite(model.alpha) || model.alpha < 0.0 || model.alpha > 1.0) {
+    fail("model.alpha = " + fmt(model.alpha) +
+         " is outside [0, 1] (alpha is the Lagrangian order; the damping order 2*alpha must lie "
+         "in [0, 2])");
+  }
+  if (model.convention != Convention::kCaputo &&
+      model.convention != Convention::kRiemannLiouville) {
+    fail("model.convention has an unknown value");
+  }
+  if (model.potential && model.potential->dimension() != d) {
+    fail("model.potential has dimension " + std::to_string(model.potential->dimension()) +
+         ", must be " + std::to_string(d) + " (the size of model.mass)");
+  }
+}
+
+void validate(const InitialValueProblem& problem) {
+  validate(problem.model);
+  const Eigen::Index d = problem.model.dimension();
+  check_vector(problem.x0, d, "x0");
+  check_vector(problem.v0, d, "v0");
+  if (!std::isfinite(problem.t0)) fail("t0 = " + fmt(problem.t0) + " must be finite");
+  if (!std::isfinite(problem.t_end) || !(problem.t_end > problem.t0)) {
+    fail("t_end = " + fmt(problem.t_end) +
+         " must be finite and greater than t0 = " + fmt(problem.t0));
+  }
+  if (problem.steps < 1) fail("steps = 0, must be >= 1");
+  const double h = problem.step_size();
+  if (!(h > 0.0) || !std::isfinite(h) || problem.t0 + h == problem.t0) {
+    fail("steps = " + std::to_string(problem.steps) + " gives step size h = " + fmt(h) +
+         ", too small to advance time from t0 = " + fmt(problem.t0));
+  }
+  const double order = problem.model.damping_order();
+  if (problem.model.convention == Convention::kRiemannLiouville && order > 1.0 &&
+      !problem.model.is_undamped() && (problem.x0.array() != 0.0).any()) {
+    fail("model.convention = riemann-liouville with damping order 2*alpha = " + fmt(order) +
+         " > 1 and x0 != 0 is ill-posed: the Riemann-Liouville damping force contains "
+         "x0 t^(-2 alpha) / Gamma(1 - 2 alpha), which is not integrable at t = 0, so the discrete "
+         "solution does not converge as h -> 0. Use convention = caputo (the memory then acts on "
+         "x - x0 - t v0), or start from x0 = 0");
+  }
+}
+
+}  // namespace fracvi

@@ -1,0 +1,270 @@
+"""End-to-end tests of the fracvi command line: outputs, exit statuses and error contracts.
+
+Run by ctest as: python3 cli_test.py /path/to/fracvi
+Bad input must give exit status 2, exactly one line on stderr naming the argument, and nothing on
+stdout.
+"""
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+FRACVI = None
+
+
+def run(*args):
+    return subprocess.run([FRACVI, *args], capture_output=True, text=True, timeout=120)
+
+
+class Weights(unittest.TestCase):
+    def test_gl_half(self):
+        r = run("weights", "--order", "0.5", "--scheme", "gl", "-n", "5")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        values = [float(v) for v in r.stdout.split()]
+        self.assertEqual(values, [1.0, -0.5, -0.125, -0.0625, -0.0390625])
+
+    def test_seventeen_digits_round_trip(self):
+        r = run("weights", "--order", "0.3", "-n", "3")
+        lines = r.stdout.splitlines()
+        self.assertEqual(lines[1], "-0.29999999999999999")  # repr of -0.3 at 17 digits
+        self.assertEqual(float(lines[2]), -0.3 * (1 - 0.3) / 2)
+
+    def test_bdf2_and_trapezoidal_order_one(self):
+        r = run("weights", "--order", "1", "--scheme", "bdf2", "-n", "4")
+        self.assertEqual([float(v) for v in r.stdout.split()], [1.5, -2.0, 0.5, 0.0])
+        r = run("weights", "--order", "1", "--scheme", "trapezoidal", "-n", "4")
+        self.assertEqual([float(v) for v in r.stdout.split()], [2.0, -4.0, 4.0, -4.0])
+
+
+class Derivative(unittest.TestCase):
+    def values(self, *args):
+        r = run("derivative", *args)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        return [[float(v) for v in line.split()] for line in r.stdout.splitlines()]
+
+    def test_left_power_closed_form(self):
+        # D^{1/2}_- (t-a)^2 = Gamma(3)/Gamma(2.5) (t-a)^{1.5}
+        rows = self.values("--alpha", "0.5", "--side", "left", "--f", "(t-0.5)^2",
+                           "--a", "0.5", "--b", "2", "--t", "1,1.5,2")
+        for t, v in rows:
+            exact = math.gamma(3) / math.gamma(2.5) * (t - 0.5) ** 1.5
+            self.assertAlmostEqual(v, exact, delta=1e-11 * abs(exact))
+
+    def test_right_power_closed_form(self):
+        rows = self.values("--alpha", "0.3", "--side", "right", "--f", "(2-t)^3",
+                           "--a", "0", "--b", "2", "--t", "0,0.7,1.9")
+        for t, v in rows:
+            exact = math.gamma(4) / math.gamma(4 - 0.3) * (2 - t) ** (3 - 0.3)
+            self.assertAlmostEqual(v, exact, delta=1e-11 * abs(exact))
+
+    def test_order_one_is_the_derivative(self):
+        rows = self.values("--alpha", "1", "--f", "sin(t)", "--a", "0", "--b", "3", "--t", "0.5,2")
+        for t, v in rows:
+            self.assertAlmostEqual(v, math.cos(t), delta=1e-14)
+        rows = self.values("--alpha", "1", "--side", "right", "--f", "sin(t)", "--a", "0",
+                           "--b", "3", "--t", "0.5")
+        self.assertAlmostEqual(rows[0][1], -math.cos(0.5), delta=1e-14)
+
+    def test_exact_column(self):
+        rows = self.values("--alpha", "0.5", "--f", "t^1.5", "--a", "0", "--b", "2",
+                           "--t", "1", "--exact", "0.75*sqrt(pi)*t")
+        t, v, e, diff = rows[0]
+        self.assertAlmostEqual(e, 0.75 * math.sqrt(math.pi), delta=1e-15)
+        self.assertLess(abs(diff), 1e-11)
+
+
+class BadInput(unittest.TestCase):
+    def assert_bad(self, args, *needles):
+        r = run(*args)
+        self.assertEqual(r.returncode, 2, f"{args}: {r.stdout} {r.stderr}")
+        self.assertEqual(r.stdout, "", args)
+        lines = r.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, r.stderr)
+        for needle in needles:
+            self.assertIn(needle, lines[0], args)
+
+    D = ["derivative", "--f", "sin(t)", "--a", "0", "--b", "1", "--t", "0.5"]
+
+    def test_alpha_outside_unit_interval(self):
+        self.assert_bad(self.D + ["--alpha", "1.5"], "--alpha", "1.5", "[0, 1]")
+        self.assert_bad(self.D + ["--alpha", "-0.1"], "--alpha", "-0.1")
+
+    def test_a_not_below_b(self):
+        self.assert_bad(["derivative", "--alpha", "0.5", "--f", "t", "--a", "1", "--b", "1",
+                         "--t", "1"], "--a", "--b", "A < B")
+
+    def test_t_outside_interval(self):
+        self.assert_bad(["derivative", "--alpha", "0.5", "--f", "t", "--a", "0", "--b", "1",
+                         "--t", "0.5,1.5"], "--t", "1.5", "outside")
+
+    def test_unknown_side(self):
+        self.assert_bad(self.D + ["--alpha", "0.5", "--side", "middle"], "--side", "middle")
+
+    def test_malformed_expression(self):
+        self.assert_bad(["derivative", "--alpha", "0.5", "--f", "sin(t", "--a", "0", "--b", "1",
+                         "--t", "0.5"], "--f", "sin(t", "column")
+        self.assert_bad(["derivative", "--alpha", "0.5", "--f", "cos(x1)", "--a", "0", "--b", "1",
+                         "--t", "0.5"], "--f", "x1", "column")
+        self.assert_bad(["derivative", "--alpha", "0.5", "--f", "t/0", "--a", "0", "--b", "1",
+                         "--t", "0.5"], "--f", "column")
+
+    def test_nonpositive_count(self):
+        self.assert_bad(["weights", "--order", "0.5", "-n", "0"], "-n", "0", "positive")
+        self.assert_bad(["weights", "--order", "0.5", "-n", "-3"], "-n", "-3")
+
+    def test_unknown_scheme(self):
+        self.assert_bad(["weights", "--order", "0.5", "--scheme", "bdf3", "-n", "3"],
+                        "--scheme", "bdf3", "gl, bdf2 or trapezoidal")
+
+    def test_not_a_number_and_missing_option(self):
+        self.assert_bad(["weights", "--order", "half", "-n", "3"], "--order")
+        self.assert_bad(["weights", "-n", "3"], "--order")
+        self.assert_bad(["frobnicate"], "frobnicate")
+
+
+PROBLEM = """
+name = "cli-test"
+[model]
+dim = 2
+mass = [[2.0, 0.5], [0.5, 1.0]]
+damping = [[0.2, 0.05], [0.05, 0.1]]
+alpha = 0.5
+potential = "x1^4/4 + x2^2/2 - 0.2*x1*x2"
+force = ["0.1*sin(t)", "0"]
+[initial]
+position = [1.0, 0.0]
+velocity = [0.0, 0.5]
+[time]
+end = 5.0
+steps = 500
+"""
+
+
+class Run(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.dir = self.tmp.name
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def write(self, text, name="p.toml"):
+        path = os.path.join(self.dir, name)
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(text)
+        return path
+
+    def test_built_in_problem_writes_everything(self):
+        out = os.path.join(self.dir, "out")
+        r = run("run", "--out", out, "--set", "time.end=6", "--set", "time.steps=600")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("status            success", r.stdout)
+        with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+            summary = json.load(f)
+        self.assertEqual(summary["status"], "success")
+        self.assertEqual(summary["steps"], 600)
+        self.assertAlmostEqual(summary["final_time"], 6.0, delta=1e-12)
+        self.assertEqual(summary["problem"]["model"]["alpha"], 0.75)
+        self.assertLess(summary["mirror_error"], 1e-8)
+        for key in ("message", "final_position", "final_velocity", "max_balance_error",
+                    "newton_iterations", "wall_seconds"):
+            self.assertIn(key, summary)
+        with open(os.path.join(out, "trajectory.csv"), encoding="utf-8") as f:
+            rows = list(csv.reader(f))
+        self.assertEqual(rows[0], ["t", "x1", "v1", "energy", "dissipated", "balance"])
+        self.assertEqual(len(rows), 602)
+        self.assertEqual(float(rows[-1][1]), summary["final_position"][0])
+        for png in ("trajectory.png", "phase.png", "energy.png"):
+            self.assertTrue(os.path.getsize(os.path.join(out, png)) > 10000, png)
+        # problem.toml reproduces the run
+        out2 = os.path.join(self.dir, "again")
+        r = run("run", os.path.join(out, "problem.toml"), "--out", out2, "--no-plot", "--quiet")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(r.stdout, "")
+        with open(os.path.join(out2, "summary.json"), encoding="utf-8") as f:
+            self.assertEqual(json.load(f)["final_position"], summary["final_position"])
+
+    def test_problem_file_every_and_default_directory(self):
+        path = self.write(PROBLEM + "[output]\nevery = 100\n")
+        r = subprocess.run([FRACVI, "run", path, "--no-plot"], capture_output=True, text=True,
+                           cwd=self.dir, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        out = os.path.join(self.dir, "fracvi-out", "cli-test")
+        with open(os.path.join(out, "trajectory.csv"), encoding="utf-8") as f:
+            rows = list(csv.reader(f))
+        self.assertEqual(rows[0], ["t", "x1", "x2", "v1", "v2", "energy", "dissipated", "balance"])
+        self.assertEqual([float(r[0]) for r in rows[1:]], [0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
+
+    def test_numerical_failure_keeps_what_was_computed(self):
+        path = self.write(PROBLEM + "[method]\nnewton_max_iterations = 1\n")
+        out = os.path.join(self.dir, "fail")
+        r = run("run", path, "--out", out, "--no-plot")
+        self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+        with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+            summary = json.load(f)
+        self.assertNotEqual(summary["status"], "success")
+        self.assertIn("step", summary["message"])
+        self.assertLess(summary["steps"], 500)
+        with open(os.path.join(out, "trajectory.csv"), encoding="utf-8") as f:
+            self.assertEqual(len(f.readlines()), summary["steps"] + 2)
+
+    BAD = [
+        ("unknown key", ("damping =", "dampng ="), ["model.dampng", "did you mean 'damping'"]),
+        ("unknown section", ("[time]", "[timing]"), ["timing", "unknown"]),
+        ("wrong type", ("alpha = 0.5", "alpha = \"half\""), ["model.alpha", "number"]),
+        ("missing field", ("end = 5.0", ""), ["time.end", "missing"]),
+        ("both steps", ("steps = 500", "steps = 500\nstep = 0.01"), ["time.steps", "both"]),
+        ("neither", ("steps = 500", ""), ["time.steps", "missing"]),
+        ("dim mismatch", ("position = [1.0, 0.0]", "position = [1.0]"), ["initial.position"]),
+        ("M not SPD", ("mass = [[2.0, 0.5], [0.5, 1.0]]", "mass = [[1.0, 2.0], [2.0, 1.0]]"),
+         ["model.mass", "positive definite"]),
+        ("R not PSD", ("damping = [[0.2, 0.05], [0.05, 0.1]]", "damping = [[0.2, 0.5], [0.5, 0.1]]"),
+         ["model.damping", "semidefinite"]),
+        ("alpha", ("alpha = 0.5", "alpha = 1.2"), ["model.alpha = 1.2", "[0, 1]"]),
+        ("steps", ("steps = 500", "steps = -4"), ["time.steps = -4", "positive"]),
+        ("expression", ("- 0.2*x1*x2", "- 0.2*x1*x3"), ["model.potential", "x3", "column"]),
+        ("ill-posed", ("alpha = 0.5", "alpha = 0.8\nconvention = \"riemann-liouville\""),
+         ["ill-posed", "caputo"]),
+    ]
+
+    def test_bad_problem_files(self):
+        for what, (old, new), needles in self.BAD:
+            with self.subTest(what):
+                self.assertIn(old, PROBLEM)
+                path = self.write(PROBLEM.replace(old, new, 1))
+                out = os.path.join(self.dir, "never")
+                r = run("run", path, "--out", out)
+                self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+                self.assertEqual(r.stdout, "")
+                lines = r.stderr.strip().splitlines()
+                self.assertEqual(len(lines), 1, r.stderr)
+                self.assertIn("p.toml", lines[0])
+                for needle in needles:
+                    self.assertIn(needle, lines[0])
+                self.assertFalse(os.path.exists(out), "output directory created on bad input")
+
+    def test_missing_file_and_bad_override(self):
+        r = run("run", os.path.join(self.dir, "nope.toml"))
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("cannot open", r.stderr)
+        r = run("run", "--set", "model.alpha=2")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("model.alpha = 2", r.stderr)
+
+
+class Help(unittest.TestCase):
+    def test_help(self):
+        for args in (["--help"], ["run", "--help"], ["weights", "--help"],
+                     ["derivative", "--help"]):
+            r = run(*args)
+            self.assertEqual(r.returncode, 0, args)
+            self.assertIn("Usage", r.stdout)
+
+
+if __name__ == "__main__":
+    FRACVI = sys.argv.pop(1)
+    unittest.main(verbosity=2)

@@ -1,0 +1,184 @@
+// The step loop does not allocate (DESIGN §4; Drake's limit_malloc idea). This executable
+// interposes malloc/calloc/realloc/aligned allocation (glibc exports the real ones as __libc_*);
+// operator new and Eigen's aligned_malloc both end in malloc, so every heap allocation in the
+// process is counted while counting is switched on.
+//
+// Covered: linear (constant Hessian, one solve per step) and nonlinear (Newton) paths, local
+// (α = 1/2, 1) and direct (α = 0.75) histories, forcing, R = 0, a fixed-size autodiff potential.
+// Control: a dynamic-size autodiff potential does allocate, so the counter is live.
+#include <gtest/gtest.h>
+
+#include <cstddef>
+#include <cstdlib>
+
+#include "fracvi/integrate/integrator.hpp"
+#include "fracvi/model/autodiff_potential.hpp"
+#include "integrate_test_support.hpp"
+
+#if defined(__SANITIZE_ADDRESS__)
+#define FRACVI_COUNT_MALLOC 0  // the sanitizer owns malloc
+#elif defined(__GLIBC__)
+#define FRACVI_COUNT_MALLOC 1
+#else
+#define FRACVI_COUNT_MALLOC 0
+#endif
+
+namespace {
+bool g_counting = false;
+std::size_t g_allocations = 0;
+}  // namespace
+
+#if FRACVI_COUNT_MALLOC
+extern "C" {
+void* __libc_malloc(std::size_t size);
+void* __libc_calloc(std::size_t n, std::size_t size);
+void* __libc_realloc(void* p, std::size_t size);
+void* __libc_memalign(std::size_t alignment, std::size_t size);
+
+void* malloc(std::size_t size) {
+  if (g_counting) ++g_allocations;
+  return __libc_malloc(size);
+}
+void* calloc(std::size_t n, std::size_t size) {
+  if (g_counting) ++g_allocations;
+  return __libc_calloc(n, size);
+}
+void* realloc(void* p, std::size_t size) {
+  if (g_counting) ++g_allocations;
+  return __libc_realloc(p, size);
+}
+void* aligned_alloc(std::size_t alignment, std::size_t size) {
+  if (g_counting) ++g_allocations;
+  return __libc_memalign(alignment, size);
+}
+int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
+  if (g_counting) ++g_allocations;
+  *out = __libc_memalign(alignment, size);
+  return *out != nullptr ? 0 : 12;  // ENOMEM
+}
+}
+#endif
+
+namespace fracvi {
+namespace {
+
+// Allocations counted while stepping `integ` to the end.
+std::size_t allocations_while_stepping(Integrator& integ) {
+  g_allocations = 0;
+  g_counting = true;
+  Status s = Status::kRunning;
+  while (s == Status::kRunning) s = integ.step();
+  g_counting = false;
+  EXPECT_EQ(s, Status::kSuccess);
+  return g_allocations;
+}
+
+InitialValueProblem base(double alpha, std::shared_ptr<const Potential> potential) {
+  InitialValueProblem p;
+  p.model.mass = Eigen::MatrixXd{{1.5, 0.3}, {0.3, 1.0}};
+  p.model.damping = Eigen::MatrixXd{{0.6, -0.2}, {-0.2, 0.4}};
+  p.model.alpha = alpha;
+  p.model.potential = std::move(potential);
+  p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
+    f(0) = std::sin(t);
+    f(1) = 0.5;
+  };
+  p.x0 = Eigen::VectorXd{{1.2, -0.4}};
+  p.v0 = Eigen::VectorXd{{0.5, 0.8}};
+  p.t_end = 2.0;
+  p.steps = 300;
+  return p;
+}
+
+std::shared_ptr<const Potential> pendula() {
+  return std::make_shared<const test::PendulumChain>(Eigen::VectorXd{{9.81, 4.0}}, 2.0);
+}
+
+struct Duffing2 {
+  template <class T>
+  T operator()(const Eigen::Matrix<T, 2, 1>& x, T t) const {
+    using std::cos;
+    return T(0.5) * (T(2.0) + cos(t)) * (x(0) * x(0) + x(1) * x(1)) +
+           T(0.25) * x(0) * x(0) * x(0) * x(0);
+  }
+};
+
+struct DuffingDyn {
+  template <class T>
+  T operator()(const Eigen::Matrix<T, Eigen::Dynamic, 1>& x, T) const {
+    return T(0.5) * (x(0) * x(0) + x(1) * x(1)) + T(0.25) * x(0) * x(0) * x(0) * x(0);
+  }
+};
+
+class NoAllocation : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!FRACVI_COUNT_MALLOC) GTEST_SKIP() << "malloc interposition unavailable (sanitizer build)";
+  }
+};
+
+TEST_F(NoAllocation, LinearAlphaHalf) {
+  Integrator integ(base(0.5, make_quadratic_potential(Eigen::MatrixXd{{3.0, -1.0}, {-1.0, 2.0}})));
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+TEST_F(NoAllocation, NonlinearAlphaHalf) {
+  Integrator integ(base(0.5, pendula()));
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+TEST_F(NoAllocation, NonlinearFractionalDirectHistory) {
+  Integrator integ(base(0.75, pendula()));
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+TEST_F(NoAllocation, AlphaOneLocalHistory) {
+  Integrator integ(base(1.0, pendula()));
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+TEST_F(NoAllocation, Conservative) {
+  InitialValueProblem p = base(0.5, pendula());
+  p.model.damping.setZero();
+  Integrator integ(p);
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+TEST_F(NoAllocation, NoPotential) {
+  Integrator integ(base(0.3, nullptr));
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+TEST_F(NoAllocation, FixedSizeAutodiffPotential) {
+  Integrator integ(base(0.75, make_autodiff_potential<2>(Duffing2{})));
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+// Larger d: Eigen's blocked LU, matrix–vector products through GEMV kernels.
+TEST_F(NoAllocation, NonlinearChainD40) {
+  constexpr Eigen::Index kD = 40;
+  InitialValueProblem p;
+  p.model.mass = Eigen::MatrixXd::Identity(kD, kD);
+  p.model.mass.diagonal(1).setConstant(0.2);
+  p.model.mass.diagonal(-1).setConstant(0.2);
+  p.model.damping = 0.1 * p.model.mass;
+  p.model.alpha = 0.75;
+  p.model.potential =
+      std::make_shared<const test::PendulumChain>(Eigen::VectorXd::Constant(kD, 9.81), 3.0);
+  p.x0 = Eigen::VectorXd::LinSpaced(kD, -1.0, 1.0);
+  p.v0 = Eigen::VectorXd::Zero(kD);
+  p.t_end = 1.0;
+  p.steps = 50;
+  Integrator integ(p);
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+// Control: the counter sees allocations — a dynamic-size autodiff potential allocates in every
+// evaluation (documented in autodiff_potential.hpp).
+TEST_F(NoAllocation, ControlDynamicAutodiffAllocates) {
+  Integrator integ(base(0.5, make_autodiff_potential(DuffingDyn{}, 2)));
+  EXPECT_GT(allocations_while_stepping(integ), 300u);
+}
+
+}  // namespace
+}  // namespace fracvi
