@@ -305,7 +305,7 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   if (const auto* n = r.find("model", "force")) {
     if (!n->is_array()) r.fail("model.force", "must be an array of d formulas in t");
     const auto& a = *n->as_array();
-    if (static_cast<Eigen::Index>(a.size()) != p.dim) {
+    if (!a.empty() && static_cast<Eigen::Index>(a.size()) != p.dim) {  // [] means no force
       r.fail("model.force", "has " + std::to_string(a.size()) + " components, model.dim is " +
                                 std::to_string(p.dim));
     }
@@ -404,6 +404,67 @@ ProblemSpec parse_problem(std::string_view toml_text, const std::string& source,
   return read(root, source);
 }
 
+namespace {
+
+toml::array to_toml_array(const nlohmann::json& a, const std::string& source,
+                          const std::string& key);
+
+// JSON → TOML, so that one reader validates both.
+toml::table to_toml_table(const nlohmann::json& object, const std::string& source,
+                          const std::string& prefix) {
+  toml::table t;
+  for (const auto& [k, v] : object.items()) {
+    const std::string key = prefix.empty() ? k : prefix + "." + k;
+    if (v.is_object()) {
+      t.insert(k, to_toml_table(v, source, key));
+    } else if (v.is_array()) {
+      t.insert(k, to_toml_array(v, source, key));
+    } else if (v.is_string()) {
+      t.insert(k, v.get<std::string>());
+    } else if (v.is_boolean()) {
+      t.insert(k, v.get<bool>());
+    } else if (v.is_number_integer()) {
+      t.insert(k, v.get<int64_t>());
+    } else if (v.is_number()) {
+      t.insert(k, v.get<double>());
+    } else {
+      throw ProblemFileError(source + ": " + key + ": null is not a value");
+    }
+  }
+  return t;
+}
+
+toml::array to_toml_array(const nlohmann::json& a, const std::string& source,
+                          const std::string& key) {
+  toml::array out;
+  for (const auto& v : a) {
+    if (v.is_array()) {
+      out.push_back(to_toml_array(v, source, key));
+    } else if (v.is_string()) {
+      out.push_back(v.get<std::string>());
+    } else if (v.is_number_integer()) {
+      out.push_back(v.get<int64_t>());
+    } else if (v.is_number()) {
+      out.push_back(v.get<double>());
+    } else if (v.is_boolean()) {
+      out.push_back(v.get<bool>());
+    } else {
+      throw ProblemFileError(source + ": " + key + ": arrays hold numbers, strings or arrays");
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+ProblemSpec parse_problem_json(const nlohmann::json& document, const std::string& source,
+                               std::span<const std::string> overrides) {
+  if (!document.is_object()) throw ProblemFileError(source + ": a problem must be an object");
+  toml::table root = to_toml_table(document, source, "");
+  for (const auto& o : overrides) apply_override(root, o, source);
+  return read(root, source);
+}
+
 ProblemSpec load_problem(const std::filesystem::path& file,
                          std::span<const std::string> overrides) {
   std::ifstream in(file, std::ios::binary);
@@ -489,12 +550,11 @@ nlohmann::json to_json(const ProblemSpec& p) {
         {"mass", matrix_json(p.mass)},
         {"damping", matrix_json(p.damping)},
         {"alpha", p.alpha},
-        {"damping_order", 2.0 * p.alpha},
         {"convention", p.convention},
         {"potential", p.potential},
         {"force", force}}},
       {"initial", {{"position", vector_json(p.position)}, {"velocity", vector_json(p.velocity)}}},
-      {"time", {{"start", p.start}, {"end", p.end}, {"steps", p.steps}, {"step", p.step()}}},
+      {"time", {{"start", p.start}, {"end", p.end}, {"steps", p.steps}}},
       {"method",
        {{"scheme", p.scheme},
         {"newton_tolerance", p.newton_tolerance},

@@ -186,3 +186,24 @@ TEST(ProblemFile, EveryBadInputNamesTheFileTheKeyAndTheRule) {
 
 }  // namespace
 }  // namespace fracvi
+
+namespace fracvi {
+namespace {
+
+TEST(ProblemFile, JsonGoesThroughTheSameValidation) {
+  const ProblemSpec from_toml = parse(kBase);
+  const ProblemSpec from_json = parse_problem_json(to_json(from_toml), "dict");
+  EXPECT_EQ(to_json(from_json), to_json(from_toml));
+  nlohmann::json bad = to_json(from_toml);
+  bad["model"]["dampng"] = 0.1;
+  try {
+    parse_problem_json(bad, "dict");
+    FAIL() << "unknown key accepted";
+  } catch (const ProblemFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("dict: model.dampng: unknown key"), std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace fracvi

@@ -66,6 +66,11 @@ struct ProblemSpec {
 ProblemSpec parse_problem(std::string_view toml_text, const std::string& source,
                           std::span<const std::string> overrides = {});
 
+/// The same schema and validation from a JSON object (used by the Python module: a dict or keyword
+/// arguments become JSON). JSON integers are TOML integers, so `steps = 100` must not be 100.0.
+ProblemSpec parse_problem_json(const nlohmann::json& document, const std::string& source,
+                               std::span<const std::string> overrides = {});
+
 /// Reads and parses a problem file.
 ProblemSpec load_problem(const std::filesystem::path& file,
                          std::span<const std::string> overrides = {});
