@@ -35,5 +35,7 @@ struct Command {
 Command add_weights_command(CLI::App& parent);
 Command add_derivative_command(CLI::App& parent);
 Command add_run_command(CLI::App& parent);
+Command add_convergence_command(CLI::App& parent);
+Command add_plot_command(CLI::App& parent);
 
 }  // namespace fracvi::cli

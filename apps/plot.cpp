@@ -8,43 +8,50 @@ namespace fracvi::cli {
 
 namespace {
 
-// The plotting script: next to the installed binary (../share/fracvi/plot.py) or in the source
-// tree this binary was built from.
-std::filesystem::path plot_script() {
+// A plotting script: next to the installed binary (../share/fracvi/<name>) or in the source tree
+// this binary was built from.
+std::filesystem::path plot_script(const std::string& name) {
   std::error_code ec;
   const auto exe = std::filesystem::read_symlink("/proc/self/exe", ec);
   if (!ec) {
-    const auto installed = exe.parent_path().parent_path() / "share" / "fracvi" / "plot.py";
+    const auto installed = exe.parent_path().parent_path() / "share" / "fracvi" / name;
     if (std::filesystem::exists(installed)) return installed;
   }
-  return std::filesystem::path(FRACVI_SOURCE_DIR) / "python" / "fracvi" / "plot.py";
+  return std::filesystem::path(FRACVI_SOURCE_DIR) / "python" / "fracvi" / name;
 }
 
-std::string quoted(const std::string& s) {
+std::string shell_quoted(const std::string& s) {
   std::string q = "'";
   for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
   return q + "'";
 }
 
-}  // namespace
-
-std::string draw_plots(const std::filesystem::path& dir, bool quiet) {
+// Runs the script `name` on `dir`; "" on success, else a one-line note (the log is kept in dir).
+std::string run_plot_script(const std::string& name, const std::filesystem::path& dir) {
   // Debian's interpreter: the first python3 on PATH may be another one without matplotlib.
   const std::string python = "/usr/bin/python3";
-  const auto script = plot_script();
+  const auto script = plot_script(name);
   if (!std::filesystem::exists(python)) return "not drawn: /usr/bin/python3 is not installed";
   if (!std::filesystem::exists(script)) return "not drawn: " + script.string() + " is missing";
-  const std::string cmd = quoted(python) + " " + quoted(script.string()) + " " +
-                          quoted(dir.string()) + " >/dev/null 2>" +
-                          quoted((dir / "plot.log").string());
-  const int rc = std::system(cmd.c_str());
-  if (rc != 0) {
-    (void)quiet;
-    return "not drawn: matplotlib failed (python3-matplotlib installed?), see " +
-           (dir / "plot.log").string();
+  const auto log = dir / "plot.log";
+  const std::string cmd = shell_quoted(python) + " " + shell_quoted(script.string()) + " " +
+                          shell_quoted(dir.string()) + " >/dev/null 2>" +
+                          shell_quoted(log.string());
+  if (std::system(cmd.c_str()) != 0) {
+    return "not drawn: matplotlib failed (is python3-matplotlib installed?), see " + log.string();
   }
-  std::filesystem::remove(dir / "plot.log");
+  std::filesystem::remove(log);
   return "";
+}
+
+}  // namespace
+
+std::string draw_plots(const std::filesystem::path& dir, bool /*quiet*/) {
+  return run_plot_script("plot.py", dir);
+}
+
+std::string draw_convergence_plot(const std::filesystem::path& dir) {
+  return run_plot_script("plot_convergence.py", dir);
 }
 
 }  // namespace fracvi::cli

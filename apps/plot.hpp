@@ -10,4 +10,7 @@ namespace fracvi::cli {
 /// one-line note saying why there are no plots (the data files are written regardless).
 std::string draw_plots(const std::filesystem::path& dir, bool quiet);
 
+/// Draws convergence.png (log-log error against h) from convergence.csv in `dir`; "" or a note.
+std::string draw_convergence_plot(const std::filesystem::path& dir);
+
 }  // namespace fracvi::cli

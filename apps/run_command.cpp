@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "fracvi/analysis/convergence.hpp"
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/io/output.hpp"
@@ -102,6 +103,10 @@ Command add_run_command(CLI::App& parent) {
       }
       std::printf("  balance error     max |E_k + W_k - E_0| = %.3e\n", solution.max_balance_error);
       std::printf("  mirror error      max |y_k - x_(N-k)| = %.3e\n", solution.mirror_error);
+      if (!spec.reference.empty()) {
+        std::printf("  reference error   max |x_k - x_ref(t_k)| = %.3e\n",
+                    max_error(solution, parse_reference(spec.reference)));
+      }
       std::printf("  newton            %zu iterations (max %zu per step)\n",
                   solution.newton_iterations, solution.max_newton_iterations_per_step);
       std::printf("  wall time         %.3f s\n", solution.wall_time_seconds);

@@ -86,6 +86,12 @@ struct Integrator::Impl {
   bool use_history;  // damped, and not the local α = 1/2 path
   bool shift_x0;     // Caputo: x̃ = x − x_0 …
   bool shift_v0;     // … − t v_0 (2α > 1)
+  // Weight of the impulse h F_0 in the start p⁺_0 = M v_0 − w h F_0 (start_step.md §2a): ½ (the
+  // trapezoidal split of a smooth force), or 1 for Riemann–Liouville with 0 < 2α < 1, where F_0 =
+  // R h^{−2α} x_0 stands for the singular force R x_0 t^{−2α}/Γ(1−2α) and only the full
+  // left-rectangle weight of the GL sums is consistent (½ leaves a momentum defect
+  // (h^{1−2α}/2) R x_0 and costs the order: 1 − 2α instead of 1).
+  double start_force_weight;
   bool has_forcing;
   bool u_time_dependent;
   double damping_scale;  // h^{−2α}
@@ -126,6 +132,10 @@ struct Integrator::Impl {
         use_history(damped && !(viscous && options.history == HistoryKind::kAuto)),
         shift_x0(problem.model.convention == Convention::kCaputo && order > 0.0 && order != 1.0),
         shift_v0(problem.model.convention == Convention::kCaputo && order > 1.0),
+        start_force_weight(problem.model.convention == Convention::kRiemannLiouville &&
+                                   order > 0.0 && order < 1.0
+                               ? 1.0
+                               : 0.5),
         has_forcing(static_cast<bool>(problem.model.forcing)),
         u_time_dependent(problem.model.potential && problem.model.potential->is_time_dependent()),
         damping_scale(std::pow(h, -order)),
@@ -267,7 +277,7 @@ struct Integrator::Impl {
     } else {
       // p⁺_k = p_k − (h/2) F_k, then M Δ_k + (h²/2)∇U_f(x_k + Δ_k/2, t_{k+½}) = h p⁺_k for the
       // increment Δ_k = x_{k+1} − x_k. Predictor: the previous increment (h v_0 at k = 0).
-      p_plus = p - (0.5 * h) * force;
+      p_plus = p - ((k == 0 ? start_force_weight : 0.5) * h) * force;
       rhs = h * p_plus;
       if (k == 0) dx = h * problem.v0;
       const internal::NewtonReport report = newton.solve(xk, t_half, rhs, f_ptr, dx);
@@ -330,6 +340,8 @@ struct Integrator::Impl {
       fv_next = force_next.dot(v_new);
       fw_next = force_next.dot(w_next);
       work += 0.5 * h * (fv + fv_next) + 0.125 * h * h * (fw_next - fw);
+      // The extra start impulse (w − ½) h F_0 of the singular RL force, booked with v_0.
+      if (k == 0) work += (start_force_weight - 0.5) * h * fv;
       if (has_forcing) work -= f_mid.dot(dx);
       if (u_time_dependent) {
         mid = xk + 0.5 * dx;

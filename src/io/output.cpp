@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "fracvi/analysis/convergence.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/expression_potential.hpp"
 
@@ -17,8 +18,8 @@ InitialValueProblem make_initial_value_problem(const ProblemSpec& spec) {
   p.model.damping = spec.damping;
   p.model.alpha = spec.alpha;
   p.model.convention = *parse_convention(spec.convention);
-  p.model.potential =
-      std::make_shared<const ExpressionPotential>(spec.dim, spec.potential, spec.force);
+  p.model.potential = std::make_shared<const ExpressionPotential>(spec.dim, spec.potential);
+  p.model.forcing = make_expression_forcing(spec.force);
   p.x0 = spec.position;
   p.v0 = spec.velocity;
   p.t0 = spec.start;
@@ -69,6 +70,9 @@ void write_atomically(const std::filesystem::path& file, const std::string& cont
 
 nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
   const Eigen::Index last = static_cast<Eigen::Index>(s.steps_done);
+  nlohmann::json reference_error;  // null without a [reference]
+  if (!spec.reference.empty())
+    reference_error = number(max_error(s, parse_reference(spec.reference)));
   return {
       {"status", s.ok() ? "success" : std::string(to_string(s.status))},
       {"message", s.message},
@@ -79,6 +83,7 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
       {"final_velocity", row_json(s.v, last)},
       {"final_energy", s.energy.size() ? number(s.energy[last]) : nlohmann::json()},
       {"mirror_error", number(s.mirror_error)},
+      {"reference_error", reference_error},
       {"max_balance_error", number(s.max_balance_error)},
       {"newton_iterations", s.newton_iterations},
       {"max_newton_iterations_per_step", s.max_newton_iterations_per_step},

@@ -19,13 +19,14 @@ namespace {
 // The schema: section → allowed keys. "" is the top level.
 const std::map<std::string, std::vector<std::string>>& schema() {
   static const std::map<std::string, std::vector<std::string>> s{
-      {"", {"name", "model", "initial", "time", "method", "output"}},
+      {"", {"name", "model", "initial", "time", "method", "output", "reference"}},
       {"model",
        {"dim", "mass", "damping", "alpha", "damping_order", "convention", "potential", "force"}},
       {"initial", {"position", "velocity"}},
       {"time", {"start", "end", "steps", "step"}},
       {"method", {"scheme", "newton_tolerance", "newton_max_iterations"}},
       {"output", {"every"}},
+      {"reference", {"position"}},
   };
   return s;
 }
@@ -80,7 +81,7 @@ class Reader {
       const auto& top = s.at("");
       if (std::find(top.begin(), top.end(), key) == top.end()) {
         fail(key, "unknown key or section" + suggestion(key, top) +
-                      "; valid: name, [model], [initial], [time], [method], [output]");
+                      "; valid: name, [model], [initial], [time], [method], [output], [reference]");
       }
       if (key == "name") continue;
       if (!v.is_table()) fail(key, "must be a section [" + key + "], not a value");
@@ -385,6 +386,20 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     p.every = r.integer(*n, "output.every");
     if (p.every < 1) r.fail("output.every", "= " + std::to_string(p.every) + " must be at least 1");
   }
+  // [reference]
+  if (const auto* n = r.find("reference", "position")) {
+    if (!n->is_array()) r.fail("reference.position", "must be an array of d formulas in t");
+    const auto& a = *n->as_array();
+    if (static_cast<Eigen::Index>(a.size()) != p.dim) {
+      r.fail("reference.position", "has " + std::to_string(a.size()) +
+                                       " components, model.dim is " + std::to_string(p.dim));
+    }
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      const std::string key = "reference.position[" + std::to_string(i + 1) + "]";
+      p.reference.push_back(r.string(a[i], key));
+      check_expression(r, key, p.reference.back(), {"t"});
+    }
+  }
   return p;
 }
 
@@ -543,7 +558,7 @@ toml::array vector_toml(const Eigen::VectorXd& v) {
 nlohmann::json to_json(const ProblemSpec& p) {
   nlohmann::json force = nlohmann::json::array();
   for (const auto& f : p.force) force.push_back(f);
-  return {
+  nlohmann::json j = {
       {"name", p.name},
       {"model",
        {{"dim", p.dim},
@@ -561,6 +576,8 @@ nlohmann::json to_json(const ProblemSpec& p) {
         {"newton_max_iterations", p.newton_max_iterations}}},
       {"output", {{"every", p.every}}},
   };
+  if (!p.reference.empty()) j["reference"] = {{"position", p.reference}};
+  return j;
 }
 
 std::string to_toml(const ProblemSpec& p) {
@@ -583,6 +600,11 @@ std::string to_toml(const ProblemSpec& p) {
                    {"newton_max_iterations", static_cast<int64_t>(p.newton_max_iterations)}}},
       {"output", toml::table{{"every", static_cast<int64_t>(p.every)}}},
   };
+  if (!p.reference.empty()) {
+    toml::array ref;
+    for (const auto& e : p.reference) ref.push_back(e);
+    root.insert("reference", toml::table{{"position", ref}});
+  }
   std::ostringstream os;
   os << root << '\n';
   return os.str();

@@ -1,6 +1,7 @@
 #include "fracvi/model/expression_potential.hpp"
 
 #include <atomic>
+#include <memory>
 #include <numeric>
 #include <stdexcept>
 #include <unordered_map>
@@ -20,24 +21,6 @@ std::vector<std::string> all_names(Eigen::Index d) {
   return names;
 }
 
-Expression build(Eigen::Index d, const std::string& potential,
-                 const std::vector<std::string>& force) {
-  const auto names = all_names(d);
-  // Parse each piece on its own first, so that an error points into the text the user wrote.
-  Expression::parse(potential, names);
-  if (force.empty()) return Expression::parse(potential, names);
-  if (static_cast<Eigen::Index>(force.size()) != d) {
-    throw std::invalid_argument("force has " + std::to_string(force.size()) +
-                                " components, the dimension is " + std::to_string(d));
-  }
-  parse_expressions(force, {"t"});
-  std::string text = "(" + potential + ")";
-  for (Eigen::Index i = 0; i < d; ++i) {
-    text += " - (" + force[static_cast<std::size_t>(i)] + ")*x" + std::to_string(i + 1);
-  }
-  return Expression::parse(text, names);
-}
-
 std::vector<std::size_t> position_indices(Eigen::Index d) {
   std::vector<std::size_t> wrt(static_cast<std::size_t>(d));
   std::iota(wrt.begin(), wrt.end(), std::size_t{0});
@@ -53,10 +36,9 @@ std::vector<std::string> ExpressionPotential::position_names(Eigen::Index dimens
   return names;
 }
 
-ExpressionPotential::ExpressionPotential(Eigen::Index dimension, const std::string& potential,
-                                         const std::vector<std::string>& force)
+ExpressionPotential::ExpressionPotential(Eigen::Index dimension, const std::string& potential)
     : dimension_(dimension),
-      derivatives_(build(dimension, potential, force), position_indices(dimension)),
+      derivatives_(Expression::parse(potential, all_names(dimension)), position_indices(dimension)),
       time_dependent_(derivatives_.expression().depends_on(static_cast<std::size_t>(dimension))),
       id_(next_id()) {}
 
@@ -91,6 +73,17 @@ void ExpressionPotential::hessian(const Eigen::Ref<const Eigen::VectorXd>& x, do
                                   Eigen::Ref<Eigen::MatrixXd> H) const {
   Scratch& s = scratch(x, t);
   derivatives_.evaluate_dense(s.args, s.gradient, H, s.workspace);
+}
+
+Forcing make_expression_forcing(const std::vector<std::string>& force) {
+  if (force.empty()) return {};
+  auto components =
+      std::make_shared<const std::vector<Expression>>(parse_expressions(force, {"t"}));
+  return [components](double t, Eigen::Ref<Eigen::VectorXd> out) {
+    const double args[] = {t};
+    for (std::size_t i = 0; i < components->size(); ++i)
+      out[static_cast<Eigen::Index>(i)] = (*components)[i](args);
+  };
 }
 
 }  // namespace fracvi

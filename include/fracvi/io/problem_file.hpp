@@ -6,6 +6,7 @@
 //   [time]     start, end, steps | step
 //   [method]   scheme, newton_tolerance, newton_max_iterations
 //   [output]   every
+//   [reference] position   (optional exact solution: d formulas in t)
 //
 // Parsing validates everything before a single step is taken: unknown sections and keys are
 // errors (with the nearest valid name suggested), and every message names the file, the key, the
@@ -58,6 +59,9 @@ struct ProblemSpec {
 
   // [output]
   long long every = 1;
+
+  // [reference]
+  std::vector<std::string> reference;  ///< exact x(t), empty or d formulas in t
 };
 
 /// Parses and validates a problem from TOML text. `overrides` are "section.key=value" strings

@@ -49,6 +49,14 @@ struct AutodiffPotentialOptions {
 
 namespace internal {
 
+// GCC 12 reports -Wmaybe-uninitialized for fixed-size AutoDiffScalar vectors passed to the user's
+// functor (every entry is assigned before the call; a known false positive with Eigen's fixed-size
+// storage). Silenced here so that user code built with -Werror is not broken by this header.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+
 template <class Functor, int Dim>
 class AutodiffPotential final : public Potential {
  public:
@@ -114,6 +122,10 @@ class AutodiffPotential final : public Potential {
   Eigen::Index dim_;
   AutodiffPotentialOptions options_;
 };
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 }  // namespace internal
 

@@ -1,9 +1,8 @@
-// A potential given as a formula, e.g. from a problem file: U(x, t) − f(t)·x.
+// A potential U(x1..xd, t) given as a formula, e.g. from a problem file, and a force f(t) given as
+// d formulas.
 //
 // The formula is parsed once; value, gradient and Hessian come from the expression engine's exact
-// symbolic derivatives compiled into one tape (no finite differences). External forcing f(t)
-// enters as the time-dependent potential −f(t)·x (DESIGN §3.2), so the scheme evaluates it where
-// it evaluates U: at the midpoints of `DiscEqs`.
+// symbolic derivatives compiled into one tape (no finite differences).
 #pragma once
 
 #include <cstdint>
@@ -11,17 +10,16 @@
 #include <vector>
 
 #include "fracvi/expression/expression.hpp"
+#include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/model/potential.hpp"
 
 namespace fracvi {
 
 class ExpressionPotential final : public Potential {
  public:
-  /// The variables are x1..xd and t. `force` is empty (no forcing) or has d formulas in t.
-  /// Throws ExpressionError (with the column) for a malformed formula and std::invalid_argument
-  /// for a wrong number of force components.
-  ExpressionPotential(Eigen::Index dimension, const std::string& potential,
-                      const std::vector<std::string>& force = {});
+  /// The variables are x1..xd and t. Throws ExpressionError (with the column) for a malformed
+  /// formula.
+  ExpressionPotential(Eigen::Index dimension, const std::string& potential);
 
   /// The variable names x1..xd.
   static std::vector<std::string> position_names(Eigen::Index dimension);
@@ -37,7 +35,6 @@ class ExpressionPotential final : public Potential {
   }
   [[nodiscard]] bool is_time_dependent() const override { return time_dependent_; }
 
-  /// U(x, t) − f(t)·x as one expression.
   [[nodiscard]] const Expression& expression() const { return derivatives_.expression(); }
 
  private:
@@ -56,5 +53,9 @@ class ExpressionPotential final : public Potential {
   bool time_dependent_;
   std::uint64_t id_;  // never reused, unlike the object's address
 };
+
+/// f(t) from d formulas in t, as the model's Forcing callback (allocation-free after the first
+/// call on a thread). Throws ExpressionError for a malformed formula.
+Forcing make_expression_forcing(const std::vector<std::string>& force);
 
 }  // namespace fracvi

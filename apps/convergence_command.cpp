@@ -1,0 +1,120 @@
+// `fracvi convergence`: observed order of the scheme on a problem, against an exact solution or a
+// much finer run.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+#include "fracvi/analysis/convergence.hpp"
+#include "fracvi/integrate/integrator.hpp"
+#include "fracvi/io/output.hpp"
+#include "fracvi/io/problem_file.hpp"
+#include "plot.hpp"
+
+namespace fracvi::cli {
+
+Command add_convergence_command(CLI::App& parent) {
+  struct Options {
+    std::string file;
+    std::vector<std::size_t> steps;
+    std::vector<std::string> reference;
+    std::size_t reference_steps = 0;
+    std::vector<std::string> overrides;
+    std::string out;
+    bool no_plot = false;
+  };
+  auto opt = std::make_shared<Options>();
+  CLI::App* app = parent.add_subcommand(
+      "convergence",
+      "Run a problem with several step counts and print h | max error over the grid | observed "
+      "order, plus the least-squares order; write convergence.csv and a log-log "
+      "convergence.png. The reference is the exact solution ([reference] position in the file, "
+      "or --reference) or, without one, a run with --reference-steps steps.");
+  app->add_option("problem", opt->file, "problem file (TOML)")->required();
+  app->add_option("--steps", opt->steps, "step counts, increasing, comma-separated")
+      ->required()
+      ->delimiter(',');
+  app->add_option("--reference", opt->reference,
+                  "exact x(t): d formulas in t, comma-separated (overrides [reference])")
+      ->delimiter(',');
+  app->add_option("--reference-steps", opt->reference_steps,
+                  "without an exact solution: step count of the reference run (a multiple of "
+                  "every --steps entry)");
+  app->add_option("--set", opt->overrides, "override a problem value (repeatable)");
+  app->add_option("--out", opt->out,
+                  "output directory (default ./fracvi-out/<problem name>-convergence)");
+  app->add_flag("--no-plot", opt->no_plot, "do not draw convergence.png");
+
+  auto run = [opt]() {
+    ProblemSpec spec;
+    try {
+      spec = load_problem(opt->file, opt->overrides);
+      validate(make_initial_value_problem(spec));
+    } catch (const ProblemFileError& e) {
+      throw UsageError(e.what());
+    } catch (const ValidationError& e) {
+      throw UsageError(spec.source + ": " + e.what());
+    }
+    std::vector<std::string> exact = opt->reference.empty() ? spec.reference : opt->reference;
+    if (!opt->reference.empty() && static_cast<Eigen::Index>(exact.size()) != spec.dim) {
+      throw UsageError("--reference has " + std::to_string(exact.size()) +
+                       " formulas, the problem's dimension is " + std::to_string(spec.dim));
+    }
+    if (opt->reference_steps > 0 && opt->reference.empty()) exact.clear();
+    ConvergenceStudy study;
+    try {
+      study = convergence_study(spec, opt->steps, exact, opt->reference_steps);
+    } catch (const ExpressionError& e) {
+      throw UsageError("--reference: " + e.reason() + " at column " +
+                       std::to_string(e.column() + 1));
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(e.what());
+    }
+
+    std::printf("fracvi convergence: %s  (alpha = %g, scheme fvi-gl, declared order %d)\n",
+                spec.name.c_str(), spec.alpha, study.declared_order);
+    std::printf("reference: %s\n", study.reference.c_str());
+    std::printf("%10s  %12s  %12s  %14s  %9s\n", "N", "h", "max error", "observed order",
+                "wall [s]");
+    std::string csv = "steps,h,error,observed_order,wall_seconds,status\n";
+    bool all_ok = true;
+    for (const auto& r : study.rows) {
+      std::printf(
+          "%10zu  %12.5e  %12.5e  %14s  %9.3f%s\n", r.steps, r.h, r.error,
+          std::isnan(r.observed_order) ? "-" : format_number(r.observed_order).substr(0, 6).c_str(),
+          r.wall_seconds, r.status == "success" ? "" : ("  " + r.status).c_str());
+      csv += std::to_string(r.steps) + ',' + format_number(r.h) + ',' + format_number(r.error) +
+             ',' + format_number(r.observed_order) + ',' + format_number(r.wall_seconds) + ',' +
+             r.status + '\n';
+      all_ok = all_ok && r.status == "success";
+    }
+    std::printf("least-squares order: %.4f (declared %d)\n", study.fitted_order,
+                study.declared_order);
+
+    const std::filesystem::path dir =
+        opt->out.empty() ? std::filesystem::path("fracvi-out") / (spec.name + "-convergence")
+                         : std::filesystem::path(opt->out);
+    std::filesystem::create_directories(dir);
+    std::ofstream(dir / "convergence.csv") << csv;
+    const nlohmann::json meta{{"problem", to_json(spec)},
+                              {"reference", study.reference},
+                              {"declared_order", study.declared_order},
+                              {"fitted_order", study.fitted_order},
+                              {"method", "fvi-gl"}};
+    std::ofstream(dir / "convergence.json") << meta.dump(2) << '\n';
+    std::string note;
+    if (!opt->no_plot) note = draw_convergence_plot(dir);
+    std::printf(
+        "wrote %s/convergence.csv%s\n", dir.string().c_str(),
+        note.empty() ? (opt->no_plot ? "" : ", convergence.png") : ("; plot " + note).c_str());
+    return all_ok ? kExitSuccess : kExitNumericalFailure;
+  };
+  return {app, run};
+}
+
+}  // namespace fracvi::cli
