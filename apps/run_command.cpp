@@ -14,6 +14,7 @@
 #include "fracvi/io/output.hpp"
 #include "fracvi/io/problem_file.hpp"
 #include "plot.hpp"
+#include "progress.hpp"
 
 namespace fracvi::cli {
 
@@ -51,7 +52,9 @@ Command add_run_command(CLI::App& parent) {
   app->add_option("--out", opt->out, "output directory (default ./fracvi-out/<problem name>)");
   app->add_option("--set", opt->overrides,
                   "override a problem value, e.g. --set model.alpha=0.6 (repeatable)");
-  app->add_flag("--quiet", opt->quiet, "print nothing but errors");
+  app->add_flag("--quiet", opt->quiet,
+                "print nothing but errors (no summary, no progress bar; a progress bar is shown on "
+                "a terminal for runs longer than a second)");
   app->add_flag("--no-plot", opt->no_plot, "do not draw the PNG plots");
 
   auto run = [opt]() {
@@ -78,7 +81,12 @@ Command add_run_command(CLI::App& parent) {
                                           ? std::filesystem::path("fracvi-out") / spec.name
                                           : std::filesystem::path(opt->out);
 
-    const Solution solution = integrate(problem, fvi_gl(), options);
+    Solution solution;
+    {
+      ProgressBar progress(problem.steps, !opt->quiet);
+      solution = integrate(problem, fvi_gl(), options,
+                           [&progress](const StepView& s) { progress.update(s.k); });
+    }
     write_run_output(dir, spec, solution);
 
     std::string plot_note;
