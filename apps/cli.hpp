@@ -37,5 +37,7 @@ Command add_derivative_command(CLI::App& parent);
 Command add_run_command(CLI::App& parent);
 Command add_convergence_command(CLI::App& parent);
 Command add_plot_command(CLI::App& parent);
+Command add_residual_command(CLI::App& parent);
+Command add_bvp_command(CLI::App& parent);
 
 }  // namespace fracvi::cli

@@ -14,6 +14,7 @@
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/io/output.hpp"
 #include "fracvi/io/problem_file.hpp"
+#include "fracvi/io/run.hpp"
 #include "plot.hpp"
 
 namespace fracvi::cli {
@@ -53,12 +54,9 @@ Command add_convergence_command(CLI::App& parent) {
   auto run = [opt]() {
     ProblemSpec spec;
     try {
-      spec = load_problem(opt->file, opt->overrides);
-      validate(make_initial_value_problem(spec));
+      spec = prepare_run(load_problem(opt->file, opt->overrides)).spec;
     } catch (const ProblemFileError& e) {
       throw UsageError(e.what());
-    } catch (const ValidationError& e) {
-      throw UsageError(spec.source + ": " + e.what());
     }
     std::vector<std::string> exact = opt->reference.empty() ? spec.reference : opt->reference;
     if (!opt->reference.empty() && static_cast<Eigen::Index>(exact.size()) != spec.dim) {

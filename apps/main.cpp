@@ -14,9 +14,10 @@ int main(int argc, char** argv) {
       "fracvi"};
   app.require_subcommand(1);
   app.fallthrough(false);
-  std::vector<Command> commands{add_run_command(app), add_convergence_command(app),
-                                add_plot_command(app), add_weights_command(app),
-                                add_derivative_command(app)};
+  std::vector<Command> commands{add_run_command(app),        add_convergence_command(app),
+                                add_plot_command(app),       add_weights_command(app),
+                                add_derivative_command(app), add_bvp_command(app),
+                                add_residual_command(app)};
 
   std::string known;
   bool is_known = false;

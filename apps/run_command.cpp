@@ -13,6 +13,8 @@
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/io/output.hpp"
 #include "fracvi/io/problem_file.hpp"
+#include "fracvi/io/run.hpp"
+#include "fracvi/lagrangian/problem.hpp"
 #include "plot.hpp"
 #include "progress.hpp"
 
@@ -58,25 +60,17 @@ Command add_run_command(CLI::App& parent) {
   app->add_flag("--no-plot", opt->no_plot, "do not draw the PNG plots");
 
   auto run = [opt]() {
-    ProblemSpec spec;
-    InitialValueProblem problem;
-    IntegratorOptions options;
+    PreparedRun prepared;
     try {
-      spec = opt->file.empty()
-                 ? parse_problem(default_problem_toml(), "<built-in problem>", opt->overrides)
-                 : load_problem(opt->file, opt->overrides);
-      problem = make_initial_value_problem(spec);
-      options = make_integrator_options(spec);
-      validate(problem);
-      validate(options);
+      prepared = prepare_run(opt->file.empty() ? parse_problem(default_problem_toml(),
+                                                               "<built-in problem>", opt->overrides)
+                                               : load_problem(opt->file, opt->overrides));
     } catch (const ProblemFileError& e) {
       throw UsageError(e.what());
-    } catch (const ExpressionError& e) {
-      throw UsageError(spec.source + ": " + e.reason() + " at column " +
-                       std::to_string(e.column() + 1));
-    } catch (const ValidationError& e) {
-      throw UsageError(spec.source + ": " + e.what());
     }
+    const ProblemSpec& spec = prepared.spec;
+    const InitialValueProblem& problem = prepared.problem;
+    const IntegratorOptions& options = prepared.options;
     const std::filesystem::path dir = opt->out.empty()
                                           ? std::filesystem::path("fracvi-out") / spec.name
                                           : std::filesystem::path(opt->out);

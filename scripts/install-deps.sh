@@ -14,7 +14,8 @@ packages=(
   libgtest-dev libgmock-dev               # unit tests
   libbenchmark-dev                        # benchmarks (bench/, not part of pass/fail)
   clang-format                            # formatting check
-  python3 python3-numpy python3-matplotlib python3-pytest pybind11-dev  # Python module and plots
+  python3 python3-numpy python3-matplotlib python3-pytest  # plots, CLI and Python tests
+  python3-dev pybind11-dev                # Python module (pybind11-dev does not pull Python.h)
 )
 
 missing=()

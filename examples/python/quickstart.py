@@ -9,10 +9,12 @@ import sys
 
 import fracvi
 
+# [snippet: quickstart]
 problem = fracvi.Problem(
     name="quickstart", dim=1, mass=1.0, damping=0.3, alpha=0.75, convention="caputo",
     potential="x1^2/2 + x1^4/4", position=[1.0], velocity=[0.0], end=20.0, steps=2000)
 solution = fracvi.integrate(problem)
+# [/snippet]
 
 print(f"status {solution.status}, x(20) = {solution.x[-1, 0]:.10f}")
 print(f"energy {solution.energy[0]:.6f} -> {solution.energy[-1]:.6f}, "

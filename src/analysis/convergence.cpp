@@ -4,9 +4,10 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 #include "fracvi/integrate/integrator.hpp"
-#include "fracvi/io/output.hpp"
+#include "fracvi/io/run.hpp"
 
 namespace fracvi {
 
@@ -63,9 +64,9 @@ namespace {
 
 Solution run_with_steps(ProblemSpec spec, std::size_t steps) {
   spec.steps = static_cast<long long>(steps);
-  IntegratorOptions options = make_integrator_options(spec);
-  options.mirror = false;  // the study measures x only; the mirror run would double the cost
-  return integrate(make_initial_value_problem(spec), fvi_gl(), options);
+  PreparedRun run = prepare_run(std::move(spec));
+  run.options.mirror = false;  // the study measures x only; the mirror run would double the cost
+  return integrate(run.problem, fvi_gl(), run.options);
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 #include "fracvi/integrate/history.hpp"
 
+#include "fracvi/integrate/fast_history.hpp"
+
 #include <cassert>
 #include <cmath>
 #include <stdexcept>
@@ -85,10 +87,30 @@ void LocalHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
   }
 }
 
+std::optional<HistoryKind> parse_history_kind(std::string_view name) {
+  if (name == "auto") return HistoryKind::kAuto;
+  if (name == "direct") return HistoryKind::kDirect;
+  if (name == "fast") return HistoryKind::kFast;
+  return std::nullopt;
+}
+
+std::string_view to_string(HistoryKind kind) {
+  switch (kind) {
+    case HistoryKind::kAuto: return "auto";
+    case HistoryKind::kDirect: return "direct";
+    case HistoryKind::kFast: return "fast";
+  }
+  return "unknown";
+}
+
 std::unique_ptr<History> make_history(HistoryKind kind, double order, Eigen::Index dimension,
-                                      std::size_t capacity) {
-  if (kind == HistoryKind::kAuto && is_local_order(order)) {
+                                      std::size_t capacity, double tolerance) {
+  if (kind != HistoryKind::kDirect && is_local_order(order)) {
     return std::make_unique<LocalHistory>(order, dimension);
+  }
+  if (kind == HistoryKind::kFast ||
+      (kind == HistoryKind::kAuto && capacity >= kFastHistoryCrossover)) {
+    return make_fast_history(order, dimension, capacity, tolerance);
   }
   return std::make_unique<DirectHistory>(order, dimension, capacity);
 }

@@ -45,8 +45,15 @@ void validate(const IntegratorOptions& options) {
     throw ValidationError("options.newton.max_iterations = " + std::to_string(n.max_iterations) +
                           " must be >= 1");
   }
-  if (options.history != HistoryKind::kAuto && options.history != HistoryKind::kDirect) {
+  if (options.history != HistoryKind::kAuto && options.history != HistoryKind::kDirect &&
+      options.history != HistoryKind::kFast) {
     throw ValidationError("options.history has an unknown value");
+  }
+  if (!(options.history_tolerance >= 1e-13 && options.history_tolerance <= 1e-3)) {
+    throw ValidationError(
+        "options.history_tolerance = " + std::to_string(options.history_tolerance) +
+        " must be in [1e-13, 1e-3] (per-weight relative accuracy of the fast "
+        "history)");
   }
   if (options.start != StartValue::kDiscreteLegendre &&
       options.start != StartValue::kExplicitEuler) {
@@ -129,7 +136,7 @@ struct Integrator::Impl {
         order(problem.model.damping_order()),
         damped(!problem.model.is_undamped()),
         viscous(order == 1.0),
-        use_history(damped && !(viscous && options.history == HistoryKind::kAuto)),
+        use_history(damped && !(viscous && options.history != HistoryKind::kDirect)),
         shift_x0(problem.model.convention == Convention::kCaputo && order > 0.0 && order != 1.0),
         shift_v0(problem.model.convention == Convention::kCaputo && order > 1.0),
         start_force_weight(problem.model.convention == Convention::kRiemannLiouville &&
@@ -146,7 +153,8 @@ struct Integrator::Impl {
     minv_damping = mass_llt.solve(damping);
     mass_inverse = mass_llt.solve(Eigen::MatrixXd::Identity(d, d));
     mass_inverse = symmetric_part(mass_inverse);
-    if (use_history) history = make_history(options.history, order, d, n_steps + 1);
+    if (use_history)
+      history = make_history(options.history, order, d, n_steps + 1, options.history_tolerance);
 
     const auto rows = static_cast<Eigen::Index>(n_steps + 1);
     sol.t = Eigen::VectorXd::Constant(rows, kNaN);
@@ -398,7 +406,7 @@ struct Integrator::Impl {
     internal::MidpointNewton solver(mass, h, problem.model.potential.get(), options.newton,
                                     problem.t0);
     std::unique_ptr<History> hist;
-    if (damped) hist = make_history(options.history, order, d, n + 1);
+    if (damped) hist = make_history(options.history, order, d, n + 1, options.history_tolerance);
     auto x_row = [&](std::size_t i) {
       return Eigen::Map<const Eigen::VectorXd>(sol.x.row(static_cast<Eigen::Index>(i)).data(), d);
     };

@@ -32,6 +32,8 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   IntegratorOptions o;
   o.newton.relative_tolerance = spec.newton_tolerance;
   o.newton.max_iterations = spec.newton_max_iterations;
+  o.history = *parse_history_kind(spec.history);
+  o.history_tolerance = spec.history_tolerance;
   return o;
 }
 

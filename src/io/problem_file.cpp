@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "fracvi/expression/expression.hpp"
+#include "fracvi/lagrangian/lagrangian.hpp"
 #include "fracvi/model/expression_potential.hpp"
 
 namespace fracvi {
@@ -19,12 +20,15 @@ namespace {
 // The schema: section → allowed keys. "" is the top level.
 const std::map<std::string, std::vector<std::string>>& schema() {
   static const std::map<std::string, std::vector<std::string>> s{
-      {"", {"name", "model", "initial", "time", "method", "output", "reference"}},
+      {"", {"name", "model", "initial", "boundary", "time", "method", "output", "reference"}},
       {"model",
-       {"dim", "mass", "damping", "alpha", "damping_order", "convention", "potential", "force"}},
+       {"dim", "mass", "damping", "alpha", "damping_order", "convention", "potential", "force",
+        "lagrangian"}},
       {"initial", {"position", "velocity"}},
+      {"boundary", {"start", "end"}},
       {"time", {"start", "end", "steps", "step"}},
-      {"method", {"scheme", "newton_tolerance", "newton_max_iterations"}},
+      {"method",
+       {"scheme", "newton_tolerance", "newton_max_iterations", "history", "history_tolerance"}},
       {"output", {"every"}},
       {"reference", {"position"}},
   };
@@ -81,7 +85,8 @@ class Reader {
       const auto& top = s.at("");
       if (std::find(top.begin(), top.end(), key) == top.end()) {
         fail(key, "unknown key or section" + suggestion(key, top) +
-                      "; valid: name, [model], [initial], [time], [method], [output], [reference]");
+                      "; valid: name, [model], [initial], [boundary], [time], [method], [output], "
+                      "[reference]");
       }
       if (key == "name") continue;
       if (!v.is_table()) fail(key, "must be a section [" + key + "], not a value");
@@ -240,13 +245,28 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   const long long dim = r.integer(r.required("model", "dim", "the dimension d"), "model.dim");
   if (dim < 1) r.fail("model.dim", "= " + std::to_string(dim) + " must be at least 1");
   p.dim = static_cast<Eigen::Index>(dim);
-  p.mass = r.matrix(r.required("model", "mass", "the mass matrix M"), "model.mass", p.dim);
-  if (!is_symmetric(p.mass)) r.fail("model.mass", "is not symmetric");
-  Eigen::LLT<Eigen::MatrixXd> llt(p.mass);
-  if (llt.info() != Eigen::Success) {
-    const double lmin = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(p.mass).eigenvalues()[0];
-    r.fail("model.mass", "is not symmetric positive definite (smallest eigenvalue " +
-                             format_value(lmin, 6) + ")");
+  // A general Lagrangian replaces the mechanical fields (mass, damping, potential, force).
+  const auto* lagrangian = r.find("model", "lagrangian");
+  if (lagrangian) {
+    p.lagrangian = r.string(*lagrangian, "model.lagrangian");
+    for (const char* key : {"mass", "damping", "potential", "force"}) {
+      if (r.find("model", key)) {
+        r.fail(std::string("model.") + key,
+               "cannot be combined with model.lagrangian (the Lagrangian already holds the "
+               "kinetic energy, the potential and the memory coupling; give one or the other)");
+      }
+    }
+    check_expression(r, "model.lagrangian", p.lagrangian,
+                     ExpressionLagrangian::variable_names(p.dim));
+  } else {
+    p.mass = r.matrix(r.required("model", "mass", "the mass matrix M"), "model.mass", p.dim);
+    if (!is_symmetric(p.mass)) r.fail("model.mass", "is not symmetric");
+    Eigen::LLT<Eigen::MatrixXd> llt(p.mass);
+    if (llt.info() != Eigen::Success) {
+      const double lmin = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(p.mass).eigenvalues()[0];
+      r.fail("model.mass", "is not symmetric positive definite (smallest eigenvalue " +
+                               format_value(lmin, 6) + ")");
+    }
   }
   p.damping = Eigen::MatrixXd::Zero(p.dim, p.dim);
   if (const auto* n = r.find("model", "damping")) p.damping = r.matrix(*n, "model.damping", p.dim);
@@ -298,11 +318,23 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
            "missing: fractional damping needs an explicit memory convention, \"caputo\" (memory "
            "of x - x(0) - t v(0)) or \"riemann-liouville\" (the paper's)");
   }
+  if (lagrangian) {
+    if (r.find("model", "convention") && p.convention != "riemann-liouville") {
+      r.fail("model.convention",
+             "= \"" + p.convention +
+                 "\" is not available with model.lagrangian: a general Lagrangian is a function "
+                 "of the paper's Riemann-Liouville derivatives dx = D^alpha_- x, dy = D^alpha_+ y "
+                 "(give \"riemann-liouville\" or leave the key out)");
+    }
+    p.convention = "riemann-liouville";
+  }
   auto names = ExpressionPotential::position_names(p.dim);
   names.push_back("t");
-  p.potential = r.string(r.required("model", "potential", "U as a formula in x1..xd and t"),
-                         "model.potential");
-  check_expression(r, "model.potential", p.potential, names);
+  if (!lagrangian) {
+    p.potential = r.string(r.required("model", "potential", "U as a formula in x1..xd and t"),
+                           "model.potential");
+    check_expression(r, "model.potential", p.potential, names);
+  }
   if (const auto* n = r.find("model", "force")) {
     if (!n->is_array()) r.fail("model.force", "must be an array of d formulas in t");
     const auto& a = *n->as_array();
@@ -317,8 +349,10 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     }
   }
 
-  // [initial]
-  p.position = r.vector(r.required("initial", "position", "x(0)"), "initial.position", p.dim);
+  // [initial] (optional when the file poses a boundary value problem)
+  const bool has_boundary = r.find("", "boundary") != nullptr;
+  if (!has_boundary || r.find("initial", "position") != nullptr)
+    p.position = r.vector(r.required("initial", "position", "x(0)"), "initial.position", p.dim);
   p.velocity = Eigen::VectorXd::Zero(p.dim);
   if (const auto* n = r.find("initial", "velocity"))
     p.velocity = r.vector(*n, "initial.velocity", p.dim);
@@ -329,6 +363,13 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
                " > 1 and initial.position != 0 is ill-posed: the Riemann-Liouville damping "
                "force of the constant x(0) behaves like t^(-2 alpha) and is not integrable; use "
                "convention = \"caputo\" (memory of x - x(0) - t v(0)) or start at x(0) = 0");
+  }
+
+  // [boundary]: x(a) = start = y(b), x(b) = end = y(a) (`fracvi bvp`)
+  if (has_boundary) {
+    p.boundary_start =
+        r.vector(r.required("boundary", "start", "x(a) = y(b)"), "boundary.start", p.dim);
+    p.boundary_end = r.vector(r.required("boundary", "end", "x(b) = y(a)"), "boundary.end", p.dim);
   }
 
   // [time]
@@ -380,6 +421,21 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
       r.fail("method.newton_max_iterations", "= " + std::to_string(it) + " must be in [1, 10000]");
     }
     p.newton_max_iterations = static_cast<int>(it);
+  }
+  if (const auto* n = r.find("method", "history")) {
+    p.history = r.string(*n, "method.history");
+    if (p.history != "auto" && p.history != "direct" && p.history != "fast") {
+      r.fail("method.history", "= \"" + p.history + "\" must be \"auto\", \"direct\" or \"fast\"" +
+                                   suggestion(p.history, {"auto", "direct", "fast"}));
+    }
+  }
+  if (const auto* n = r.find("method", "history_tolerance")) {
+    p.history_tolerance = r.number(*n, "method.history_tolerance");
+    if (!(p.history_tolerance >= 1e-13 && p.history_tolerance <= 1e-3)) {
+      r.fail("method.history_tolerance", "= " + format_value(p.history_tolerance) +
+                                             " must be in [1e-13, 1e-3] (per-weight relative "
+                                             "accuracy of the fast history)");
+    }
   }
   // [output]
   if (const auto* n = r.find("output", "every")) {
@@ -518,6 +574,7 @@ steps = 6000
 scheme = "fvi-gl"
 newton_tolerance = 1e-12
 newton_max_iterations = 50
+history = "auto"
 
 [output]
 every = 1
@@ -573,10 +630,23 @@ nlohmann::json to_json(const ProblemSpec& p) {
       {"method",
        {{"scheme", p.scheme},
         {"newton_tolerance", p.newton_tolerance},
-        {"newton_max_iterations", p.newton_max_iterations}}},
+        {"newton_max_iterations", p.newton_max_iterations},
+        {"history", p.history},
+        {"history_tolerance", p.history_tolerance}}},
       {"output", {{"every", p.every}}},
   };
   if (!p.reference.empty()) j["reference"] = {{"position", p.reference}};
+  if (!p.lagrangian.empty()) {
+    j["model"] = {{"dim", p.dim},
+                  {"lagrangian", p.lagrangian},
+                  {"alpha", p.alpha},
+                  {"convention", p.convention}};
+  }
+  if (p.position.size() == 0) j.erase("initial");
+  if (p.boundary_start.size() > 0) {
+    j["boundary"] = {{"start", vector_json(p.boundary_start)},
+                     {"end", vector_json(p.boundary_end)}};
+  }
   return j;
 }
 
@@ -597,13 +667,26 @@ std::string to_toml(const ProblemSpec& p) {
       {"method",
        toml::table{{"scheme", p.scheme},
                    {"newton_tolerance", p.newton_tolerance},
-                   {"newton_max_iterations", static_cast<int64_t>(p.newton_max_iterations)}}},
+                   {"newton_max_iterations", static_cast<int64_t>(p.newton_max_iterations)},
+                   {"history", p.history},
+                   {"history_tolerance", p.history_tolerance}}},
       {"output", toml::table{{"every", static_cast<int64_t>(p.every)}}},
   };
   if (!p.reference.empty()) {
     toml::array ref;
     for (const auto& e : p.reference) ref.push_back(e);
     root.insert("reference", toml::table{{"position", ref}});
+  }
+  if (!p.lagrangian.empty()) {
+    root.insert_or_assign("model", toml::table{{"dim", static_cast<int64_t>(p.dim)},
+                                               {"lagrangian", p.lagrangian},
+                                               {"alpha", p.alpha},
+                                               {"convention", p.convention}});
+  }
+  if (p.position.size() == 0) root.erase("initial");
+  if (p.boundary_start.size() > 0) {
+    root.insert("boundary", toml::table{{"start", vector_toml(p.boundary_start)},
+                                        {"end", vector_toml(p.boundary_end)}});
   }
   std::ostringstream os;
   os << root << '\n';

@@ -4,8 +4,8 @@
 // process is counted while counting is switched on.
 //
 // Covered: linear (constant Hessian, one solve per step) and nonlinear (Newton) paths, local
-// (α = 1/2, 1) and direct (α = 0.75) histories, forcing, R = 0, a fixed-size autodiff potential.
-// Control: a dynamic-size autodiff potential does allocate, so the counter is live.
+// (α = 1/2, 1), direct and fast (α = 0.75) histories, forcing, R = 0, a fixed-size autodiff
+// potential. Control: a dynamic-size autodiff potential does allocate, so the counter is live.
 #include <gtest/gtest.h>
 
 #include <cstddef>
@@ -129,6 +129,13 @@ TEST_F(NoAllocation, NonlinearAlphaHalf) {
 
 TEST_F(NoAllocation, NonlinearFractionalDirectHistory) {
   Integrator integ(base(0.75, pendula()));
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+TEST_F(NoAllocation, NonlinearFractionalFastHistory) {
+  IntegratorOptions options;
+  options.history = HistoryKind::kFast;
+  Integrator integ(base(0.75, pendula()), fvi_gl(), options);
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
 }
 

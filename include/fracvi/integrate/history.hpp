@@ -10,7 +10,9 @@
 //  * LocalHistory: for integer damping orders 2α ∈ {0, 1, 2} the weights terminate
 //    ((1 − ζ)^{2α} is a polynomial), so only the last 2α + 1 values are kept. For α = 1/2 this is
 //    Lemma 5.3: Σ c_m x̃_{k−m} = x̃_k − x̃_{k−1}.
-//  * (later) FastHistory: sum-of-exponentials compression of the tail (DESIGN §6), same interface.
+//  * FastHistory (fast_history.hpp): exact weights for a short window of recent lags and a
+//    sum-of-exponentials compression of the tail (DESIGN §6, docs/theory/fast_history.md):
+//    O((n0 + K)·d) per step and memory independent of N, K ~ log N · log(1/ε).
 //
 // push() and sum() never allocate and never throw; all storage is reserved at construction.
 #pragma once
@@ -18,6 +20,8 @@
 #include <Eigen/Dense>
 #include <cstddef>
 #include <memory>
+#include <optional>
+#include <string_view>
 #include <vector>
 
 namespace fracvi {
@@ -89,13 +93,23 @@ class LocalHistory final : public History {
 };
 
 enum class HistoryKind {
-  kAuto,    ///< LocalHistory for integer 2α, DirectHistory otherwise
+  /// LocalHistory for integer 2α; otherwise FastHistory when capacity ≥ kFastHistoryCrossover
+  /// (4096: measured in bench/history_bench.cpp, fit included; see bench/RESULTS.md), else
+  /// DirectHistory.
+  kAuto,
   kDirect,  ///< DirectHistory always (e.g. to check Lemma 5.3 against the full sum)
+  kFast,    ///< LocalHistory for integer 2α, FastHistory otherwise
 };
 
-/// The history for damping order `order` = 2α, able to take `capacity` pushes.
+/// "auto", "direct", "fast" (the names of problem files and the Python module).
+std::optional<HistoryKind> parse_history_kind(std::string_view name);
+std::string_view to_string(HistoryKind kind);
+
+/// The history for damping order `order` = 2α, able to take `capacity` pushes. `tolerance` is the
+/// per-weight relative accuracy ε of a FastHistory. Throws std::invalid_argument for invalid
+/// arguments (before any step).
 std::unique_ptr<History> make_history(HistoryKind kind, double order, Eigen::Index dimension,
-                                      std::size_t capacity);
+                                      std::size_t capacity, double tolerance = 1e-10);
 
 /// True if `order` is 0, 1 or 2 (the weights of (1 − ζ)^order terminate).
 bool is_local_order(double order);

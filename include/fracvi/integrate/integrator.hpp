@@ -59,6 +59,8 @@ enum class StartValue {
 struct IntegratorOptions {
   NewtonOptions newton;
   HistoryKind history = HistoryKind::kAuto;
+  /// Per-weight relative accuracy ε of the fast history (its sum-of-exponentials fit).
+  double history_tolerance = 1e-10;
   /// Run the mirror equation backwards and report Solution::mirror_error (doubles the cost).
   bool mirror = true;
   /// Compute energy, dissipated work and balance every step (one potential value per step, three

@@ -2,9 +2,12 @@
 //
 //   name = "damped-pendulum"
 //   [model]    dim, mass, damping, alpha | damping_order, convention, potential, force
-//   [initial]  position, velocity
+//              or dim, lagrangian, alpha (a general L(t, x, y, xdot, ydot, dx, dy); no mass,
+//              damping, potential or force then, and the Riemann-Liouville convention)
+//   [initial]  position, velocity   (optional when [boundary] is given)
+//   [boundary] start, end           (x(a) = y(b), x(b) = y(a): the BVP of `fracvi bvp`)
 //   [time]     start, end, steps | step
-//   [method]   scheme, newton_tolerance, newton_max_iterations
+//   [method]   scheme, newton_tolerance, newton_max_iterations, history, history_tolerance
 //   [output]   every
 //   [reference] position   (optional exact solution: d formulas in t)
 //
@@ -43,9 +46,15 @@ struct ProblemSpec {
   std::string convention = "caputo";  ///< "caputo" or "riemann-liouville"
   std::string potential = "0";        ///< U(x1..xd, t)
   std::vector<std::string> force;     ///< f(t), empty or d formulas
+  /// L(t, x1.., y1.., xdot1.., ydot1.., dx1.., dy1..) (dx = D^alpha_- x, dy = D^alpha_+ y); when
+  /// set, mass is empty, damping zero, potential "0", force empty, convention riemann-liouville.
+  std::string lagrangian;
 
   // [initial]
-  Eigen::VectorXd position, velocity;
+  Eigen::VectorXd position, velocity;  ///< position is empty for a [boundary] file without it
+
+  // [boundary]
+  Eigen::VectorXd boundary_start, boundary_end;  ///< x(a) = y(b), x(b) = y(a); empty if absent
 
   // [time]
   double start = 0.0, end = 1.0;
@@ -56,6 +65,8 @@ struct ProblemSpec {
   std::string scheme = "fvi-gl";
   double newton_tolerance = 1e-12;
   int newton_max_iterations = 50;
+  std::string history = "auto";      ///< "auto", "direct" or "fast" (the damping memory sum)
+  double history_tolerance = 1e-10;  ///< per-weight relative accuracy of the fast history
 
   // [output]
   long long every = 1;

@@ -1,0 +1,93 @@
+// FastHistory: the memory sum of `DiscEqs` in O((n0 + K)·d) work and memory per step,
+// independent of the number of steps N (DESIGN §6; docs/theory/fast_history.md).
+//
+// The sum Σ_{m=0}^{k} c_m x̃_{k−m} (c = the order-β CQ weights, β = 2α) is split at the window n0:
+//
+//     Σ_{m=0}^{n0−1} c_m x̃_{k−m}            exact weights, the last n0 values in a ring buffer;
+//   + Σ_{m=n0}^{k}   c_m x̃_{k−m}            with c_m ≈ Σ_j w_j e^{−λ_j (m − n0)} (ExponentialFit)
+//   ≈ Σ_j w_j Y_j,   Y_j^{(k)} = Σ_{i=0}^{k−n0} e^{−λ_j (k − n0 − i)} x̃_i,
+//
+// and each Y_j (a d-vector) follows the one-term recursion Y_j ← e^{−λ_j} Y_j + x̃_{k−n0} when
+// x̃_k is pushed (x̃_{k−n0} is the value that leaves the window). Because every tail weight is
+// reproduced to relative error ε, |S_k − S_k^direct| ≤ ε Σ_m |c_m| max|x̃| (+ round-off, which the
+// recursions keep at the level of the direct sum since λ_j > 0 and the weights hardly cancel:
+// ExponentialFit::cancellation, measured 1–3).
+//
+// push() does the recursions and caches the tail Σ_j w_j Y_j (one pass over the K × d state);
+// sum() adds the window as one d × n0 matrix–vector product. The ring stores every value twice
+// (columns p and p + n0) so that the last n0 values are always n0 contiguous columns. Neither
+// allocates nor throws; all storage is sized at construction.
+#pragma once
+
+#include <Eigen/Dense>
+#include <cstddef>
+#include <memory>
+
+#include "fracvi/fractional/exponential_fit.hpp"
+#include "fracvi/integrate/history.hpp"
+
+namespace fracvi {
+
+class FastHistory final : public History {
+ public:
+  /// A history on a precomputed fit (e.g. shared_exponential_fit()). Throws std::invalid_argument
+  /// if fit is null, dimension < 1, capacity < 1, or the fit does not cover lags up to
+  /// capacity − 1 (fit->max_lag < capacity − 1).
+  FastHistory(std::shared_ptr<const ExponentialFit> fit, Eigen::Index dimension,
+              std::size_t capacity);
+
+  /// Grünwald–Letnikov weights of `order` (the paper's scheme) to relative tolerance
+  /// `tolerance`, through the process-wide fit cache with max_lag = fast_history_fit_lag(capacity).
+  /// Throws std::invalid_argument for what fit_exponentials() rejects (integer orders: use
+  /// LocalHistory) and for dimension < 1 or capacity < 1.
+  FastHistory(double order, Eigen::Index dimension, std::size_t capacity,
+              double tolerance = kDefaultFitTolerance);
+
+  void push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) override;
+  void sum(Eigen::Ref<Eigen::VectorXd> out) const override;
+  void clear() override;
+  [[nodiscard]] std::size_t size() const override { return size_; }
+  [[nodiscard]] std::size_t capacity() const override { return capacity_; }
+  [[nodiscard]] Eigen::Index dimension() const override { return ring_.rows(); }
+  [[nodiscard]] double order() const override { return fit_->order; }
+
+  [[nodiscard]] const ExponentialFit& fit() const { return *fit_; }
+  /// n0, the number of exactly weighted recent lags.
+  [[nodiscard]] std::size_t window() const { return fit_->window; }
+  /// K, the number of exponentials (recursions per degree of freedom).
+  [[nodiscard]] std::size_t terms() const { return fit_->terms(); }
+
+ private:
+  std::shared_ptr<const ExponentialFit> fit_;
+  std::size_t capacity_;
+  Eigen::Index window_;            // n0
+  Eigen::VectorXd head_reversed_;  // c_{n0−1}, …, c_0 (matches the ring's chronological order)
+  Eigen::MatrixXd ring_;           // d × 2n0; x̃_j in columns j mod n0 and j mod n0 + n0
+  Eigen::ArrayXd decay_;           // e^{−λ_j}
+  Eigen::VectorXd weights_;        // w_j
+  Eigen::ArrayXXd state_;          // K × d; column i holds Y_1 … Y_K of degree of freedom i
+  Eigen::VectorXd tail_;           // Σ_j w_j Y_j (d), updated by push()
+  std::size_t size_ = 0;
+};
+
+/// The max_lag used by FastHistory(order, …) for a capacity: the next power of two ≥
+/// capacity − 1 (at least 1), so that runs of similar length share one cached fit. A fit for a
+/// larger max_lag is valid for every smaller lag, and K grows by about 2 terms per doubling of
+/// max_lag at ε = 1e-10, so the rounding costs at most about 2 terms.
+std::size_t fast_history_fit_lag(std::size_t capacity);
+
+/// FastHistory for the Grünwald–Letnikov or BDF2 weights of `order` (what HistoryKind::kFast
+/// should construct). Throws like the constructors.
+std::unique_ptr<History> make_fast_history(double order, Eigen::Index dimension,
+                                           std::size_t capacity,
+                                           double tolerance = kDefaultFitTolerance,
+                                           CqScheme scheme = CqScheme::kGrunwaldLetnikov);
+
+/// Capacity from which HistoryKind::kAuto should pick FastHistory for non-integer orders. Measured
+/// by bench/history_bench.cpp (docs/theory/fast_history.md §8): above it FastHistory wins a whole
+/// run of `capacity` push+sum steps for d = 1 and d = 100 even when the run pays for its fit and
+/// against a direct sum written as one gemv; below it a direct run takes ≲ 30 ms and is exact to
+/// round-off. (With the fit cached the crossover is 20–200 steps.)
+inline constexpr std::size_t kFastHistoryCrossover = 4096;
+
+}  // namespace fracvi

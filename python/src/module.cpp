@@ -1,0 +1,569 @@
+// fracvi._fracvi: the C++ library as seen from Python. python/fracvi/__init__.py is the public
+// API; this module is its thin native layer (docs/python.md).
+//
+// One source of truth. Problems are validated by the C++ problem-file reader (parse_problem,
+// parse_problem_json, load_problem) and by the same model checks `fracvi run` applies, and bad
+// input raises ProblemError (a ValueError) whose message is exactly what `fracvi run` prints after
+// "fracvi run: ": checked_spec() and run_problem() go through prepare_run(), the checks the CLI
+// applies (python/tests/test_problem.py compares the messages with the CLI's). Runs go
+// through integrate(), summaries through make_summary(), files through write_run_output().
+//
+// No copies where it matters (DESIGN §4): a Solution's arrays are read-only NumPy views of its
+// Eigen storage (row-major (N+1) × d), and the Python object owning the Solution is their base,
+// so an array keeps the storage alive after the Solution object is gone. Results of the discrete
+// operators and weights move their Eigen/std::vector buffer into the array they return.
+//
+// Layout conversion of sequences: the paper's operators take a d × (N+1) matrix whose column k is
+// z_k (fracvi/discrete/operators.hpp). A C-contiguous NumPy array of shape (N+1, d), row k = z_k,
+// has exactly that memory layout, so Python uses the NumPy-natural shape and nothing is
+// transposed.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <Eigen/Core>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "fracvi/discrete/operators.hpp"
+#include "fracvi/expression/expression.hpp"
+#include "fracvi/fractional/riemann_liouville.hpp"
+#include "fracvi/fractional/weights.hpp"
+#include "fracvi/integrate/integrator.hpp"
+#include "fracvi/integrate/method.hpp"
+#include "fracvi/io/output.hpp"
+#include "fracvi/io/problem_file.hpp"
+#include "fracvi/io/run.hpp"
+#include "fracvi/lagrangian/problem.hpp"
+
+namespace py = pybind11;
+
+namespace fracvi::python {
+
+namespace {
+
+/// Bad problem input; becomes fracvi.ProblemError, a subclass of ValueError.
+class ProblemError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+std::string repr_text(py::handle h) {
+  return py::repr(h).cast<std::string>();
+}
+
+// ---------------------------------------------------------------------------------------------
+// JSON <-> Python. Direct conversion (no text in between), so doubles cross unchanged and Python
+// ints stay JSON integers (the reader insists that time.steps is an integer).
+
+py::object to_python(const nlohmann::json& j) {
+  using Type = nlohmann::json::value_t;
+  switch (j.type()) {
+    case Type::boolean: return py::bool_(j.get<bool>());
+    case Type::number_integer: return py::int_(j.get<std::int64_t>());
+    case Type::number_unsigned: return py::int_(j.get<std::uint64_t>());
+    case Type::number_float: return py::float_(j.get<double>());
+    case Type::string: return py::str(j.get_ref<const std::string&>());
+    case Type::array: {
+      py::list list;
+      for (const auto& e : j) list.append(to_python(e));
+      return list;
+    }
+    case Type::object: {
+      py::dict dict;
+      for (const auto& [k, v] : j.items()) dict[py::str(k)] = to_python(v);
+      return dict;
+    }
+    default: return py::none();  // null (JSON has no NaN: summary.json writes null)
+  }
+}
+
+nlohmann::json from_python(py::handle h, const std::string& key, const std::string& source) {
+  const std::string where = source + ": " + (key.empty() ? std::string("the problem") : key);
+  PyObject* p = h.ptr();
+  if (h.is_none()) return nullptr;  // the reader's message: "<key>: null is not a value"
+  if (PyBool_Check(p)) return h.cast<bool>();
+  if (PyLong_Check(p)) {
+    int overflow = 0;
+    const long long value = PyLong_AsLongLongAndOverflow(p, &overflow);
+    if (overflow != 0) throw ProblemError(where + " = " + repr_text(h) + " does not fit 64 bits");
+    return static_cast<std::int64_t>(value);
+  }
+  if (PyFloat_Check(p)) return PyFloat_AsDouble(p);
+  if (PyUnicode_Check(p)) return h.cast<std::string>();
+  if (PyDict_Check(p)) {
+    nlohmann::json object = nlohmann::json::object();
+    for (const auto& [k, v] : py::reinterpret_borrow<py::dict>(h)) {
+      if (!PyUnicode_Check(k.ptr())) {
+        throw ProblemError(where + ": key " + repr_text(k) + " is not a string");
+      }
+      const auto name = k.cast<std::string>();
+      object[name] = from_python(v, key.empty() ? name : key + "." + name, source);
+    }
+    return object;
+  }
+  if (PyList_Check(p) || PyTuple_Check(p)) {
+    nlohmann::json array = nlohmann::json::array();
+    std::size_t i = 0;
+    for (const auto& e : py::reinterpret_borrow<py::sequence>(h)) {
+      array.push_back(from_python(e, key + "[" + std::to_string(++i) + "]", source));
+    }
+    return array;
+  }
+  // NumPy arrays and scalars (np.float64 is a float already; np.int64, np.bool_ are not).
+  if (py::hasattr(h, "tolist")) return from_python(h.attr("tolist")(), key, source);
+  throw ProblemError(where + " = " + repr_text(h) + ": a " +
+                     py::str(py::type::handle_of(h).attr("__name__")).cast<std::string>() +
+                     " cannot be used (numbers, strings, lists and dicts only)");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Problems.
+
+/// Parses with `parse` and applies every check `fracvi run` applies before its first step
+/// (prepare_run, shared with the CLI), with the CLI's messages. A spec that passes can be
+/// integrated.
+template <class Parse>
+ProblemSpec checked_spec(Parse&& parse) {
+  try {
+    return prepare_run(parse()).spec;
+  } catch (const ProblemFileError& e) {
+    throw ProblemError(e.what());
+  }
+}
+
+py::array matrix_copy(const Eigen::MatrixXd& m) {
+  py::array_t<double> out({m.rows(), m.cols()});
+  auto a = out.mutable_unchecked<2>();
+  for (Eigen::Index i = 0; i < m.rows(); ++i)
+    for (Eigen::Index j = 0; j < m.cols(); ++j) a(i, j) = m(i, j);
+  return out;
+}
+
+py::array vector_copy(const Eigen::VectorXd& v) {
+  py::array_t<double> out(v.size());
+  std::copy(v.data(), v.data() + v.size(), out.mutable_data());
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Runs.
+
+/// What a run produced, with the problem it solved (make_summary and write_run_output need it).
+struct Run {
+  ProblemSpec spec;
+  Solution solution;
+};
+
+void make_read_only(py::array& a) {
+  py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+}
+
+/// A read-only view of `rows` × `cols` row-major doubles (cols = 0: a vector), owned by `owner`.
+py::array view(py::handle owner, const double* data, Eigen::Index rows, Eigen::Index cols) {
+  constexpr auto kSize = static_cast<py::ssize_t>(sizeof(double));
+  py::array a;
+  if (cols == 0) {
+    a = py::array(py::dtype::of<double>(), {py::ssize_t{rows}}, {kSize}, data, owner);
+  } else {
+    a = py::array(py::dtype::of<double>(), {py::ssize_t{rows}, py::ssize_t{cols}},
+                  {py::ssize_t{cols} * kSize, kSize}, data, owner);
+  }
+  make_read_only(a);
+  return a;
+}
+
+// "" keeps the problem's [method] history.
+std::optional<HistoryKind> parse_history(const std::string& name) {
+  if (name.empty()) return std::nullopt;
+  if (auto kind = parse_history_kind(name)) return kind;
+  throw py::value_error("history = '" + name + "' must be 'auto', 'direct' or 'fast'");
+}
+
+StartValue parse_start(const std::string& name) {
+  if (name == "legendre") return StartValue::kDiscreteLegendre;
+  if (name == "euler") return StartValue::kExplicitEuler;
+  throw py::value_error("start = '" + name + "' must be 'legendre' or 'euler'");
+}
+
+std::unique_ptr<Run> run_problem(const ProblemSpec& spec, bool mirror, bool diagnostics,
+                                 double absolute_tolerance, const std::string& history,
+                                 const std::string& start) {
+  const auto method = parse_method(spec.scheme);  // the reader accepts only known schemes
+  if (!method)
+    throw ProblemError(spec.source + ": method.scheme = \"" + spec.scheme + "\" is unknown");
+  PreparedRun prepared;
+  try {
+    prepared = prepare_run(spec);
+  } catch (const ProblemFileError& e) {
+    throw ProblemError(e.what());
+  }
+  const InitialValueProblem& problem = prepared.problem;
+  IntegratorOptions options = prepared.options;
+  options.mirror = mirror;
+  options.diagnostics = diagnostics;
+  options.newton.absolute_tolerance = absolute_tolerance;
+  if (const auto kind = parse_history(history)) options.history = *kind;
+  options.start = parse_start(start);
+  try {
+    validate(options);
+  } catch (const ValidationError& e) {
+    throw py::value_error(e.what());
+  }
+  auto run = std::make_unique<Run>();
+  run->spec = spec;
+  // The potential and forcing are compiled formulas: no Python runs during the integration.
+  py::gil_scoped_release release;
+  run->solution = integrate(problem, *method, options);
+  return run;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Arrays owned by C++ buffers.
+
+template <class Buffer>
+py::array adopt(std::unique_ptr<Buffer> buffer, std::vector<py::ssize_t> shape,
+                std::vector<py::ssize_t> strides) {
+  const double* data = buffer->data();
+  py::capsule owner(buffer.get(), [](void* p) { delete static_cast<Buffer*>(p); });
+  buffer.release();  // the capsule owns it now
+  return py::array(py::dtype::of<double>(), std::move(shape), std::move(strides), data, owner);
+}
+
+constexpr py::ssize_t kDoubleSize = static_cast<py::ssize_t>(sizeof(double));
+
+py::array adopt_vector(std::vector<double>&& v) {
+  const auto n = static_cast<py::ssize_t>(v.size());
+  return adopt(std::make_unique<std::vector<double>>(std::move(v)), {n}, {kDoubleSize});
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sequences (operators.hpp).
+
+using InputArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+Sequence to_sequence(const InputArray& z, const char* op) {
+  if (z.ndim() == 1) return Eigen::Map<const Eigen::MatrixXd>(z.data(), 1, z.shape(0));
+  if (z.ndim() == 2) return Eigen::Map<const Eigen::MatrixXd>(z.data(), z.shape(1), z.shape(0));
+  throw py::value_error(std::string(op) + ": z has " + std::to_string(z.ndim()) +
+                        " dimensions; a sequence z_0..z_N is an array of shape (N+1,) or "
+                        "(N+1, d) whose row k is z_k");
+}
+
+/// The d × (N+1) result as an (N+1, d) array (or (N+1,) if the input was one-dimensional).
+py::array from_sequence(Sequence&& s, const InputArray& like) {
+  const py::ssize_t d = s.rows();
+  const py::ssize_t n1 = s.cols();
+  auto buffer = std::make_unique<Sequence>(std::move(s));
+  if (like.ndim() == 1) return adopt(std::move(buffer), {n1}, {kDoubleSize});
+  return adopt(std::move(buffer), {n1, d}, {d * kDoubleSize, kDoubleSize});
+}
+
+void require_step(double h) {
+  if (!(h > 0.0) || !std::isfinite(h)) {
+    throw py::value_error("h = " + repr_text(py::float_(h)) + " must be a positive finite step");
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Riemann–Liouville derivatives.
+
+Side parse_side(const std::string& side) {
+  if (side == "left") return Side::kLeft;
+  if (side == "right") return Side::kRight;
+  throw py::value_error("side = '" + side + "' must be 'left' or 'right'");
+}
+
+Expression parse_function_of_t(const std::string& name, const std::string& text) {
+  try {
+    return Expression::parse(text, {"t"});
+  } catch (const ExpressionError& e) {
+    // The wording of `fracvi derivative --f`.
+    throw py::value_error(name + " = \"" + text + "\": " + e.reason() + " at column " +
+                          std::to_string(e.column() + 1) + " (a formula in t)");
+  }
+}
+
+RealFunction expression_function(Expression e) {
+  return [e = std::move(e)](double t) { return e({t}); };
+}
+
+/// A Python callable as a RealFunction. Called with the GIL held (rl_derivative runs on this
+/// thread); a Python exception propagates through the quadrature as error_already_set.
+RealFunction callable_function(py::handle f, const std::string& name) {
+  if (!PyCallable_Check(f.ptr())) {
+    throw py::type_error(name + " must be a callable or a formula in t (a string), not " +
+                         repr_text(f));
+  }
+  auto fn = py::reinterpret_borrow<py::object>(f);
+  return [fn](double t) { return fn(t).cast<double>(); };
+}
+
+std::pair<RealFunction, RealFunction> function_and_derivative(py::handle f, py::handle df) {
+  RealFunction fv, dfv;
+  if (py::isinstance<py::str>(f)) {
+    const Expression e = parse_function_of_t("f", f.cast<std::string>());
+    fv = expression_function(e);
+    if (df.is_none()) dfv = expression_function(e.derivative(0));  // exact, symbolic
+  } else {
+    fv = callable_function(f, "f");
+    if (df.is_none()) {
+      throw py::value_error(
+          "rl_derivative: f is a Python callable, so df (its derivative f') is required: fracvi "
+          "never differentiates numerically. Pass df=<callable>, or give f as a formula in t, "
+          "e.g. \"t^1.5*exp(-t)\", whose derivative is then exact");
+    }
+  }
+  if (!df.is_none()) {
+    dfv = py::isinstance<py::str>(df)
+              ? expression_function(parse_function_of_t("df", df.cast<std::string>()))
+              : callable_function(df, "df");
+  }
+  return {std::move(fv), std::move(dfv)};
+}
+
+/// Applies value(t) to a scalar (returns a float) or elementwise to an array (same shape).
+template <class Value>
+py::object map_points(py::handle t, Value&& value) {
+  auto points = InputArray::ensure(t);
+  if (!points)
+    throw py::type_error("t must be a number or an array of numbers, not " + repr_text(t));
+  if (points.ndim() == 0) return py::float_(value(*points.data()));
+  std::vector<py::ssize_t> shape(points.shape(), points.shape() + points.ndim());
+  py::array_t<double> out(shape);
+  const double* in = points.data();
+  double* o = out.mutable_data();
+  for (py::ssize_t i = 0; i < points.size(); ++i) o[i] = value(in[i]);
+  return out;
+}
+
+}  // namespace
+
+void bind(py::module_& m) {
+  m.doc() = "Native layer of the fracvi package (use the fracvi module, not this one).";
+  py::register_exception<ProblemError>(m, "ProblemError", PyExc_ValueError);
+
+  // --- problems ----------------------------------------------------------------------------
+  py::class_<ProblemSpec>(m, "Spec", "A validated problem (C++ fracvi::ProblemSpec).")
+      .def_readonly("source", &ProblemSpec::source)
+      .def_readonly("name", &ProblemSpec::name)
+      .def_property_readonly("dim", [](const ProblemSpec& s) { return s.dim; })
+      .def_property_readonly("mass", [](const ProblemSpec& s) { return matrix_copy(s.mass); })
+      .def_property_readonly("damping", [](const ProblemSpec& s) { return matrix_copy(s.damping); })
+      .def_readonly("alpha", &ProblemSpec::alpha)
+      .def_readonly("convention", &ProblemSpec::convention)
+      .def_readonly("potential", &ProblemSpec::potential)
+      .def_readonly("force", &ProblemSpec::force)
+      .def_readonly("lagrangian", &ProblemSpec::lagrangian)
+      .def_property_readonly("position",
+                             [](const ProblemSpec& s) { return vector_copy(s.position); })
+      .def_property_readonly("velocity",
+                             [](const ProblemSpec& s) { return vector_copy(s.velocity); })
+      .def_readonly("start", &ProblemSpec::start)
+      .def_readonly("end", &ProblemSpec::end)
+      .def_readonly("steps", &ProblemSpec::steps)
+      .def_property_readonly("step", &ProblemSpec::step)
+      .def_readonly("scheme", &ProblemSpec::scheme)
+      .def_readonly("newton_tolerance", &ProblemSpec::newton_tolerance)
+      .def_readonly("newton_max_iterations", &ProblemSpec::newton_max_iterations)
+      .def_readonly("every", &ProblemSpec::every)
+      .def("to_dict", [](const ProblemSpec& s) { return to_python(to_json(s)); })
+      .def("to_toml", [](const ProblemSpec& s) { return to_toml(s); });
+
+  m.def(
+      "parse_toml",
+      [](const std::string& text, const std::string& source,
+         const std::vector<std::string>& overrides) {
+        return checked_spec([&] { return parse_problem(text, source, overrides); });
+      },
+      py::arg("text"), py::arg("source"), py::arg("overrides"));
+  m.def(
+      "load_toml",
+      [](const std::string& path, const std::vector<std::string>& overrides) {
+        return checked_spec([&] { return load_problem(path, overrides); });
+      },
+      py::arg("path"), py::arg("overrides"));
+  m.def(
+      "parse_dict",
+      [](py::handle document, const std::string& source,
+         const std::vector<std::string>& overrides) {
+        const nlohmann::json json = from_python(document, "", source);
+        return checked_spec([&] { return parse_problem_json(json, source, overrides); });
+      },
+      py::arg("document"), py::arg("source"), py::arg("overrides"));
+  m.def("default_problem_toml", [] { return std::string(default_problem_toml()); });
+
+  // --- solutions ---------------------------------------------------------------------------
+  py::class_<Run>(m, "Run", "A Solution and the problem it solves (C++ fracvi::Solution).")
+      .def_property_readonly("t",
+                             [](py::object self) {
+                               const auto& s = self.cast<const Run&>().solution;
+                               return view(self, s.t.data(), s.t.size(), 0);
+                             })
+      .def_property_readonly("x",
+                             [](py::object self) {
+                               const auto& s = self.cast<const Run&>().solution;
+                               return view(self, s.x.data(), s.x.rows(), s.x.cols());
+                             })
+      .def_property_readonly("v",
+                             [](py::object self) {
+                               const auto& s = self.cast<const Run&>().solution;
+                               return view(self, s.v.data(), s.v.rows(), s.v.cols());
+                             })
+      .def_property_readonly("energy",
+                             [](py::object self) {
+                               const auto& s = self.cast<const Run&>().solution;
+                               return view(self, s.energy.data(), s.energy.size(), 0);
+                             })
+      .def_property_readonly("dissipated",
+                             [](py::object self) {
+                               const auto& s = self.cast<const Run&>().solution;
+                               return view(self, s.dissipated.data(), s.dissipated.size(), 0);
+                             })
+      .def_property_readonly("balance",
+                             [](py::object self) {
+                               const auto& s = self.cast<const Run&>().solution;
+                               return view(self, s.balance.data(), s.balance.size(), 0);
+                             })
+      .def_property_readonly("status",
+                             [](const Run& r) { return std::string(to_string(r.solution.status)); })
+      .def_property_readonly("ok", [](const Run& r) { return r.solution.ok(); })
+      .def_property_readonly("message", [](const Run& r) { return r.solution.message; })
+      .def_property_readonly("steps", [](const Run& r) { return r.solution.steps_done; })
+      .def_property_readonly("newton_iterations",
+                             [](const Run& r) { return r.solution.newton_iterations; })
+      .def_property_readonly("max_newton_iterations_per_step",
+                             [](const Run& r) { return r.solution.max_newton_iterations_per_step; })
+      .def_property_readonly("mirror_error", [](const Run& r) { return r.solution.mirror_error; })
+      .def_property_readonly("max_balance_error",
+                             [](const Run& r) { return r.solution.max_balance_error; })
+      .def_property_readonly("wall_time", [](const Run& r) { return r.solution.wall_time_seconds; })
+      .def_property_readonly("method", [](const Run& r) { return r.solution.method; })
+      .def_property_readonly("declared_order",
+                             [](const Run& r) { return r.solution.declared_order; })
+      .def_property_readonly("spec", [](const Run& r) { return r.spec; })
+      .def(
+          "summary",
+          [](const Run& r, const ProblemSpec* spec) {
+            return to_python(make_summary(spec ? *spec : r.spec, r.solution));
+          },
+          py::arg("spec") = nullptr)
+      .def(
+          "write",
+          [](const Run& r, const std::string& directory, const ProblemSpec* spec) {
+            write_run_output(directory, spec ? *spec : r.spec, r.solution);
+          },
+          py::arg("directory"), py::arg("spec") = nullptr);
+
+  m.def("integrate", &run_problem, py::arg("spec"), py::arg("mirror"), py::arg("diagnostics"),
+        py::arg("absolute_tolerance"), py::arg("history"), py::arg("start"));
+
+  // --- weights -----------------------------------------------------------------------------
+  m.def(
+      "gl_weights",
+      [](double order, std::int64_t n) {
+        if (n < 0) throw py::value_error("n = " + std::to_string(n) + " must not be negative");
+        return adopt_vector(gl_weights(order, static_cast<std::size_t>(n)));
+      },
+      py::arg("order"), py::arg("n"));
+  m.def(
+      "cq_weights",
+      [](double order, std::int64_t n, const std::string& scheme) {
+        const auto s = parse_cq_scheme(scheme);
+        if (!s) {
+          throw py::value_error("scheme = '" + scheme +
+                                "' is not a known scheme (choose gl, bdf2 or trapezoidal)");
+        }
+        if (n < 0) throw py::value_error("n = " + std::to_string(n) + " must not be negative");
+        return adopt_vector(cq_weights(*s, order, static_cast<std::size_t>(n)));
+      },
+      py::arg("order"), py::arg("n"), py::arg("scheme"));
+
+  // --- discrete operators (AllSequencs) ----------------------------------------------------
+  m.def(
+      "midpoint",
+      [](const InputArray& z) { return from_sequence(midpoint(to_sequence(z, "midpoint")), z); },
+      py::arg("z"));
+  m.def(
+      "delta_minus",
+      [](const InputArray& z, double h) {
+        require_step(h);
+        return from_sequence(delta_minus(to_sequence(z, "delta_minus"), h), z);
+      },
+      py::arg("z"), py::arg("h"));
+  m.def(
+      "delta_plus",
+      [](const InputArray& z, double h) {
+        require_step(h);
+        return from_sequence(delta_plus(to_sequence(z, "delta_plus"), h), z);
+      },
+      py::arg("z"), py::arg("h"));
+  m.def(
+      "frac_delta_minus",
+      [](const InputArray& z, double h, double alpha) {
+        require_step(h);
+        return from_sequence(frac_delta_minus(to_sequence(z, "frac_delta_minus"), h, alpha), z);
+      },
+      py::arg("z"), py::arg("h"), py::arg("alpha"));
+  m.def(
+      "frac_delta_plus",
+      [](const InputArray& z, double h, double alpha) {
+        require_step(h);
+        return from_sequence(frac_delta_plus(to_sequence(z, "frac_delta_plus"), h, alpha), z);
+      },
+      py::arg("z"), py::arg("h"), py::arg("alpha"));
+  m.def(
+      "convolve_past",
+      [](const InputArray& w, const InputArray& z) {
+        if (w.ndim() != 1) throw py::value_error("convolve_past: w must be one-dimensional");
+        return from_sequence(convolve_past({w.data(), static_cast<std::size_t>(w.size())},
+                                           to_sequence(z, "convolve_past")),
+                             z);
+      },
+      py::arg("w"), py::arg("z"));
+  m.def(
+      "convolve_future",
+      [](const InputArray& w, const InputArray& z) {
+        if (w.ndim() != 1) throw py::value_error("convolve_future: w must be one-dimensional");
+        return from_sequence(convolve_future({w.data(), static_cast<std::size_t>(w.size())},
+                                             to_sequence(z, "convolve_future")),
+                             z);
+      },
+      py::arg("w"), py::arg("z"));
+
+  // --- continuous Riemann–Liouville derivatives (RL) ---------------------------------------
+  m.def(
+      "rl_derivative",
+      [](double alpha, py::handle f, py::handle t, double a, double b, const std::string& side,
+         py::handle df, double tolerance) {
+        const Side s = parse_side(side);
+        const auto functions = function_and_derivative(f, df);
+        return map_points(t, [&](double point) {
+          return rl_derivative(alpha, s, functions.first, functions.second, a, b, point, tolerance);
+        });
+      },
+      py::arg("alpha"), py::arg("f"), py::arg("t"), py::arg("a"), py::arg("b"), py::arg("side"),
+      py::arg("df"), py::arg("tolerance"));
+  m.def(
+      "rl_derivative_power",
+      [](double order, double p, py::handle t, double a, double b, const std::string& side) {
+        const Side s = parse_side(side);
+        return map_points(
+            t, [&](double point) { return rl_derivative_power(order, s, p, a, b, point); });
+      },
+      py::arg("order"), py::arg("p"), py::arg("t"), py::arg("a"), py::arg("b"), py::arg("side"));
+  m.attr("default_rl_tolerance") = kRlDefaultTolerance;
+}
+
+}  // namespace fracvi::python
+
+PYBIND11_MODULE(_fracvi, m) {
+  fracvi::python::bind(m);
+}

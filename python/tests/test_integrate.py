@@ -1,0 +1,208 @@
+"""fracvi.integrate against `fracvi run`: the same problem gives the same numbers, bit for bit
+(both call the same C++ integrate() on the same validated spec); arrays are zero-copy views;
+numerical failure is a status."""
+import csv
+import gc
+import json
+import math
+import os
+import tomllib
+
+import numpy as np
+import pytest
+
+import fracvi
+from conftest import BLOWUP, FRACTIONAL, LAGRANGIAN, PROBLEM, read_summary
+
+# Not reproducible between runs, and not a result.
+VOLATILE = {"wall_seconds"}
+
+
+def cli_run(cli, path, out, *args):
+    r = cli("run", path, "--out", out, "--no-plot", "--quiet", *args)
+    assert r.returncode in (0, 1), r.stderr
+    return read_summary(out)
+
+
+def read_csv(directory):
+    with open(os.path.join(directory, "trajectory.csv"), encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    return rows[0], np.array([[float(v) for v in row] for row in rows[1:]])
+
+
+def strip(summary):
+    return {k: v for k, v in summary.items() if k not in VOLATILE}
+
+
+@pytest.mark.parametrize("text", [PROBLEM, FRACTIONAL, LAGRANGIAN],
+                         ids=["nonlinear-2d", "fractional", "lagrangian"])
+def test_bit_for_bit_with_the_cli(cli, write_file, tmp_path, text):
+    path = write_file(text)
+    cli_summary = cli_run(cli, path, tmp_path / "cli")
+    header, table = read_csv(tmp_path / "cli")
+
+    sol = fracvi.integrate(fracvi.Problem.from_toml(path))
+    assert sol.status == "success" and sol.ok and sol.message == ""
+    # summary.json has the final state and diagnostics: exactly equal (JSON numbers are written
+    # with enough digits to round-trip a double).
+    assert strip(sol.summary()) == strip(cli_summary)
+    assert sol.x[-1].tolist() == cli_summary["final_position"]
+    assert sol.v[-1].tolist() == cli_summary["final_velocity"]
+    assert sol.mirror_error == cli_summary["mirror_error"]
+    assert sol.max_balance_error == cli_summary["max_balance_error"]
+    assert sol.newton_iterations == cli_summary["newton_iterations"]
+    # Every row of trajectory.csv (17 significant digits also round-trip).
+    d = sol.dim
+    assert header == ["t"] + [f"x{i}" for i in range(1, d + 1)] + \
+        [f"v{i}" for i in range(1, d + 1)] + ["energy", "dissipated", "balance"]
+    ours = np.column_stack([sol.t, sol.x, sol.v, sol.energy, sol.dissipated, sol.balance])
+    assert np.array_equal(ours, table)
+
+    # Negative control: one ulp in x(0) changes the trajectory, so equality above is not vacuous.
+    d = tomllib.loads(text)
+    d["initial"]["position"][0] = float(np.nextafter(d["initial"]["position"][0], 2.0))
+    assert not np.array_equal(fracvi.integrate(d).x, sol.x)
+
+    # The dict (JSON) and keyword paths give the same problem, hence the same numbers.
+    d = tomllib.loads(text)
+    for problem in (fracvi.Problem.from_dict(d), fracvi.Problem(**d), d):
+        again = fracvi.integrate(problem)
+        assert np.array_equal(again.x, sol.x) and np.array_equal(again.v, sol.v)
+        assert np.array_equal(again.balance, sol.balance)
+
+
+def test_write_gives_the_cli_files(cli, write_file, tmp_path):
+    path = write_file(PROBLEM + "[output]\nevery = 7\n")
+    cli_run(cli, path, tmp_path / "cli")
+    problem = fracvi.Problem.from_toml(path)
+    sol = fracvi.integrate(problem)
+    assert fracvi.write(sol, problem, tmp_path / "py") == str(tmp_path / "py")
+    for name in ("trajectory.csv", "problem.toml"):
+        assert (tmp_path / "py" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes()
+    assert strip(read_summary(tmp_path / "py")) == strip(read_summary(tmp_path / "cli"))
+    # The two-argument form and the method write the same.
+    fracvi.write(sol, tmp_path / "py2")
+    sol.write(str(tmp_path / "py3"))
+    for other in ("py2", "py3"):
+        assert (tmp_path / other / "trajectory.csv").read_bytes() == \
+            (tmp_path / "py" / "trajectory.csv").read_bytes()
+    # A problem of another dimension cannot describe this solution.
+    with pytest.raises(ValueError, match="dimension"):
+        fracvi.write(sol, fracvi.Problem.from_toml(FRACTIONAL), tmp_path / "bad")
+
+
+def test_arrays_are_zero_copy_views():
+    sol = fracvi.integrate(fracvi.Problem.from_toml(PROBLEM))
+    n, d = sol.steps + 1, 2
+    for name in ("x", "v"):
+        a, b = getattr(sol, name), getattr(sol, name)
+        assert a.shape == (n, d) and a.dtype == np.float64
+        assert a.flags["C_CONTIGUOUS"]
+        assert a.base is not None and not a.flags["OWNDATA"]
+        assert np.shares_memory(a, b)
+        assert a.__array_interface__["data"][0] == b.__array_interface__["data"][0]
+        assert not a.flags["WRITEABLE"]  # the solution's storage is not the user's scratch space
+        with pytest.raises(ValueError):
+            a[0, 0] = 1.0
+    for name in ("t", "energy", "dissipated", "balance"):
+        a, b = getattr(sol, name), getattr(sol, name)
+        assert a.shape == (n,) and a.base is not None and np.shares_memory(a, b)
+    assert not np.shares_memory(sol.x, sol.v)
+
+    # The arrays keep the C++ storage alive after the Solution is gone.
+    x, t = sol.x, sol.t
+    expected = x.copy()
+    del sol
+    gc.collect()
+    _ = [np.ones(1000) for _ in range(100)]  # reuse freed memory, if any was freed
+    assert np.array_equal(x, expected)
+    assert t[-1] == 5.0
+
+
+@pytest.mark.parametrize("text", [PROBLEM + "[method]\nnewton_max_iterations = 1\n", BLOWUP],
+                         ids=["first-step", "blow-up"])
+def test_numerical_failure_is_a_status(cli, write_file, tmp_path, text):
+    path = write_file(text)
+    cli_summary = cli_run(cli, path, tmp_path / "cli")
+    assert cli_summary["status"] == "newton-failure"
+    sol = fracvi.integrate(path)
+    assert sol.status == "newton-failure" and not sol.ok
+    assert f"at step {sol.steps + 1} " in sol.message
+    assert sol.steps < 500
+    assert sol.x.shape == (sol.steps + 1, sol.dim) and len(sol.t) == sol.steps + 1
+    assert np.all(np.isfinite(sol.x)) and np.all(np.isfinite(sol.balance))
+    assert math.isnan(sol.mirror_error)
+    assert strip(sol.summary()) == strip(cli_summary)
+    assert sol.summary()["mirror_error"] is None  # null in summary.json
+
+    with pytest.raises(fracvi.IntegrationError) as e:
+        fracvi.integrate(path, raise_on_failure=True)
+    assert str(e.value) == f"newton-failure: {sol.message}"
+    assert e.value.status == "newton-failure"
+    assert np.array_equal(e.value.solution.x, sol.x)
+
+
+def test_partial_trajectory_is_the_start_of_the_full_one():
+    # The failed run's rows are exactly the rows a run that does not fail computes.
+    sol = fracvi.integrate(BLOWUP)
+    assert sol.steps == 296
+    shorter = fracvi.integrate(fracvi.Problem.from_toml(BLOWUP).with_overrides(
+        "time.end=2.96", "time.steps=296"))
+    assert shorter.ok
+    np.testing.assert_array_equal(shorter.x[:, 0], sol.x[:, 0])
+    # raise_on_failure does not raise on success
+    assert fracvi.integrate(PROBLEM, raise_on_failure=True).ok
+
+
+def test_method_overrides_are_validated_like_the_file(cli, write_file, tmp_path):
+    path = write_file(PROBLEM)
+    problem = fracvi.Problem.from_toml(path)
+    sol = fracvi.integrate(problem, newton_max_iterations=1)
+    assert sol.status == "newton-failure"
+    assert sol.summary()["problem"]["method"]["newton_max_iterations"] == 1
+    assert fracvi.integrate(problem, newton_tolerance=1e-10,
+                            scheme="fvi-gl").problem.newton_tolerance == 1e-10
+    for key, value, cli_value in (("newton_tolerance", -1.0, "-1.0"),
+                                  ("newton_max_iterations", 0, "0"),
+                                  ("scheme", "rk4", "rk4")):
+        r = cli("run", path, "--set", f"method.{key}={cli_value}", "--no-plot", "--quiet")
+        assert r.returncode == 2
+        with pytest.raises(fracvi.ProblemError) as e:
+            fracvi.integrate(problem, **{key: value})
+        assert "fracvi run: " + str(e.value) == r.stderr.strip()
+
+
+def test_run_options():
+    problem = fracvi.Problem.from_toml(FRACTIONAL)
+    base = fracvi.integrate(problem)
+    no_mirror = fracvi.integrate(problem, mirror=False)
+    assert math.isnan(no_mirror.mirror_error) and not math.isnan(base.mirror_error)
+    assert np.array_equal(no_mirror.x, base.x)
+    quiet = fracvi.integrate(problem, diagnostics=False)
+    assert np.all(np.isnan(quiet.energy)) and math.isnan(quiet.max_balance_error)
+    assert np.array_equal(quiet.x, base.x)
+    direct = fracvi.integrate(problem, history="direct")
+    assert np.array_equal(direct.x, base.x)  # 2α = 3/2, N < 4096: "auto" is the direct sum
+    fast = fracvi.integrate(problem, history="fast")  # sum-of-exponentials tail, ε = 1e-10
+    assert np.max(np.abs(fast.x - base.x)) <= 1e-10 * np.max(np.abs(base.x))
+    assert not np.array_equal(fast.x, base.x)
+    euler = fracvi.integrate(problem, start="euler")
+    assert not np.array_equal(euler.x, base.x)
+    for bad, needle in ((dict(history="fastest"), "history"), (dict(start="rk"), "start"),
+                        (dict(newton_absolute_tolerance=-1.0), "absolute")):
+        with pytest.raises(ValueError, match=needle):
+            fracvi.integrate(problem, **bad)
+    with pytest.raises(TypeError):
+        fracvi.integrate(42)
+
+
+def test_solution_fields():
+    sol = fracvi.integrate(fracvi.Problem.from_toml(PROBLEM))
+    assert sol.method == "fvi-gl" and sol.declared_order == 1
+    assert sol.newton_iterations >= sol.steps and sol.max_newton_iterations_per_step >= 2
+    assert sol.wall_time > 0 and sol.problem.name == "cli-test"
+    assert sol.max_balance_error == np.max(np.abs(sol.balance))
+    s = sol.summary()
+    assert s["status"] == "success" and s["steps"] == 500 and s["steps_requested"] == 500
+    assert json.loads(json.dumps(s)) == s
+    assert "success" in repr(sol)

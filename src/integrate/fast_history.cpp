@@ -1,0 +1,126 @@
+#include "fracvi/integrate/fast_history.hpp"
+
+#include <bit>
+#include <cassert>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace fracvi {
+
+namespace {
+
+std::shared_ptr<const ExponentialFit> checked_fit(std::shared_ptr<const ExponentialFit> fit,
+                                                  Eigen::Index dimension, std::size_t capacity) {
+  if (!fit) throw std::invalid_argument("FastHistory: fit is null");
+  if (dimension < 1 || capacity < 1) {
+    throw std::invalid_argument("FastHistory: dimension = " + std::to_string(dimension) +
+                                " and capacity = " + std::to_string(capacity) + " must be >= 1");
+  }
+  if (fit->max_lag < capacity - 1) {
+    throw std::invalid_argument(
+        "FastHistory: the fit covers lags up to max_lag = " + std::to_string(fit->max_lag) +
+        " but capacity = " + std::to_string(capacity) + " needs lags up to capacity - 1");
+  }
+  return fit;
+}
+
+std::shared_ptr<const ExponentialFit> gl_fit(double order, Eigen::Index dimension,
+                                             std::size_t capacity, double tolerance) {
+  if (dimension < 1 || capacity < 1) {
+    throw std::invalid_argument("FastHistory: dimension = " + std::to_string(dimension) +
+                                " and capacity = " + std::to_string(capacity) + " must be >= 1");
+  }
+  ExponentialFitOptions options;
+  options.order = order;
+  options.tolerance = tolerance;
+  options.max_lag = fast_history_fit_lag(capacity);
+  return shared_exponential_fit(options);
+}
+
+}  // namespace
+
+std::size_t fast_history_fit_lag(std::size_t capacity) {
+  const std::size_t max_lag = capacity > 1 ? capacity - 1 : std::size_t{1};
+  // No rounding where bit_ceil would overflow; fit_exponentials rejects such lags anyway.
+  return max_lag > (std::size_t{1} << 62) ? max_lag : std::bit_ceil(max_lag);
+}
+
+FastHistory::FastHistory(std::shared_ptr<const ExponentialFit> fit, Eigen::Index dimension,
+                         std::size_t capacity)
+    : fit_(checked_fit(std::move(fit), dimension, capacity)), capacity_(capacity) {
+  window_ = static_cast<Eigen::Index>(fit_->window);
+  head_reversed_.resize(window_);
+  for (Eigen::Index i = 0; i < window_; ++i)
+    head_reversed_(i) = fit_->head[static_cast<std::size_t>(window_ - 1 - i)];
+  ring_.setZero(dimension, 2 * window_);
+  const auto k = static_cast<Eigen::Index>(fit_->terms());
+  decay_.resize(k);
+  weights_.resize(k);
+  for (Eigen::Index j = 0; j < k; ++j) {
+    decay_(j) = std::exp(-fit_->lambdas[static_cast<std::size_t>(j)]);
+    weights_(j) = fit_->weights[static_cast<std::size_t>(j)];
+  }
+  state_.setZero(k, dimension);
+  tail_.setZero(dimension);
+}
+
+FastHistory::FastHistory(double order, Eigen::Index dimension, std::size_t capacity,
+                         double tolerance)
+    : FastHistory(gl_fit(order, dimension, capacity, tolerance), dimension, capacity) {}
+
+void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
+  assert(size_ < capacity_ && x_tilde.size() == ring_.rows());
+  const auto n0 = static_cast<std::size_t>(window_);
+  const auto slot = static_cast<Eigen::Index>(size_ % n0);
+  if (size_ >= n0) {
+    // x̃_{k−n0} leaves the window (it sits in the slot x̃_k is about to take) and enters every
+    // recursion: Y_j ← e^{−λ_j} Y_j + x̃_{k−n0}; then the cached tail Σ_j w_j Y_j.
+    const auto leaving = ring_.col(slot);
+    for (Eigen::Index i = 0; i < ring_.rows(); ++i) {
+      auto y = state_.col(i);
+      y = decay_ * y + leaving(i);
+      tail_(i) = y.matrix().dot(weights_);
+    }
+  }
+  ring_.col(slot) = x_tilde;
+  ring_.col(slot + window_) = x_tilde;
+  ++size_;
+}
+
+void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
+  assert(size_ >= 1 && out.size() == ring_.rows());
+  // The last n0 values x̃_{k−n0+1} … x̃_k are columns r … r + n0 − 1 with r = (k + 1) mod n0;
+  // before k = n0 − 1 the missing ones are the zeros the ring was cleared to.
+  const auto first = static_cast<Eigen::Index>(size_ % static_cast<std::size_t>(window_));
+  out.noalias() = ring_.middleCols(first, window_) * head_reversed_;
+  out += tail_;
+}
+
+void FastHistory::clear() {
+  ring_.setZero();
+  state_.setZero();
+  tail_.setZero();
+  size_ = 0;
+}
+
+std::unique_ptr<History> make_fast_history(double order, Eigen::Index dimension,
+                                           std::size_t capacity, double tolerance,
+                                           CqScheme scheme) {
+  if (scheme == CqScheme::kGrunwaldLetnikov) {
+    return std::make_unique<FastHistory>(order, dimension, capacity, tolerance);
+  }
+  if (dimension < 1 || capacity < 1) {
+    throw std::invalid_argument("make_fast_history: dimension = " + std::to_string(dimension) +
+                                " and capacity = " + std::to_string(capacity) + " must be >= 1");
+  }
+  ExponentialFitOptions options;
+  options.scheme = scheme;
+  options.order = order;
+  options.tolerance = tolerance;
+  options.max_lag = fast_history_fit_lag(capacity);
+  return std::make_unique<FastHistory>(shared_exponential_fit(options), dimension, capacity);
+}
+
+}  // namespace fracvi

@@ -1,0 +1,520 @@
+// FastHistory and the exponential fit behind it (DESIGN §6, docs/theory/fast_history.md):
+//  * the integral representation of the GL weights, checked through its raw trapezoidal
+//    quadrature (no compression) — and a negative control (a fit used beyond its range);
+//  * every tail weight to relative error ≤ ε: all lags n0 … 3000 and log-spaced lags up to 1e8,
+//    six orders, GL and BDF2;
+//  * K(N_max, ε) grows like log N (the numbers are printed and recorded);
+//  * the history sum against DirectHistory (N = 2·10^4, d = 8) and against an exact FFT
+//    convolution (N = 10^6, d = 2) on rough random-forced sequences;
+//  * clear(), the fit cache, argument checks, and no allocation in push()/sum().
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <cstddef>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <random>
+#include <string>
+#include <unsupported/Eigen/FFT>
+#include <utility>
+#include <vector>
+
+#include "fracvi/fractional/exponential_fit.hpp"
+#include "fracvi/fractional/weights.hpp"
+#include "fracvi/integrate/fast_history.hpp"
+#include "fracvi/integrate/history.hpp"
+
+// ---- Allocation counter (as in allocation_test.cpp): glibc exports the real allocator as
+// __libc_*, so interposing malloc & co. counts every heap allocation of the process — operator
+// new and Eigen's aligned_malloc both end in malloc — while g_counting is on.
+#if defined(__SANITIZE_ADDRESS__)
+#define FRACVI_COUNT_MALLOC 0  // the sanitizer owns malloc
+#elif defined(__GLIBC__)
+#define FRACVI_COUNT_MALLOC 1
+#else
+#define FRACVI_COUNT_MALLOC 0
+#endif
+
+namespace {
+bool g_counting = false;
+std::size_t g_allocations = 0;
+}  // namespace
+
+#if FRACVI_COUNT_MALLOC
+extern "C" {
+void* __libc_malloc(std::size_t size);
+void* __libc_calloc(std::size_t n, std::size_t size);
+void* __libc_realloc(void* p, std::size_t size);
+void* __libc_memalign(std::size_t alignment, std::size_t size);
+
+void* malloc(std::size_t size) {
+  if (g_counting) ++g_allocations;
+  return __libc_malloc(size);
+}
+void* calloc(std::size_t n, std::size_t size) {
+  if (g_counting) ++g_allocations;
+  return __libc_calloc(n, size);
+}
+void* realloc(void* p, std::size_t size) {
+  if (g_counting) ++g_allocations;
+  return __libc_realloc(p, size);
+}
+void* aligned_alloc(std::size_t alignment, std::size_t size) {
+  if (g_counting) ++g_allocations;
+  return __libc_memalign(alignment, size);
+}
+int posix_memalign(void** out, std::size_t alignment, std::size_t size) {
+  if (g_counting) ++g_allocations;
+  *out = __libc_memalign(alignment, size);
+  return *out != nullptr ? 0 : 12;  // ENOMEM
+}
+}
+#endif
+
+namespace fracvi {
+namespace {
+
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+constexpr double kOrders[] = {0.3, 0.5, 0.75, 1.25, 1.5, 1.8};
+constexpr std::size_t kDenseCheckEnd = 3000;  // every lag n0 … 3000 is checked
+constexpr std::size_t kLargestLag = 100'000'000;
+
+// Lags 3000 < m ≤ 1e8, 37 per decade (a grid unrelated to the fit's own 200-per-decade
+// verification grid, so the test sees lags the fit never looked at), plus 1e8 itself.
+std::vector<std::size_t> log_spaced_lags(std::size_t from, std::size_t to) {
+  std::vector<std::size_t> lags;
+  const double a = std::log10(static_cast<double>(from)), b = std::log10(static_cast<double>(to));
+  const auto n = static_cast<std::size_t>(std::ceil((b - a) * 37.0));
+  for (std::size_t i = 1; i <= n; ++i) {
+    const auto m = static_cast<std::size_t>(std::round(
+        std::pow(10.0, a + (b - a) * (static_cast<double>(i) - 0.5) / static_cast<double>(n))));
+    if (m > from && (lags.empty() || m > lags.back())) lags.push_back(m);
+  }
+  lags.push_back(to);
+  return lags;
+}
+
+struct WeightErrors {
+  double dense = 0.0;   // max over n0 ≤ m ≤ 3000
+  double sparse = 0.0;  // max over the log-spaced lags
+  std::size_t worst_lag = 0;
+};
+
+// Relative error of every represented tail weight against the exact reference.
+WeightErrors weight_errors(const ExponentialFit& fit, const std::vector<double>& dense_exact) {
+  WeightErrors e;
+  const std::size_t last_dense = std::min(kDenseCheckEnd, fit.max_lag);
+  for (std::size_t m = fit.window; m <= last_dense; ++m) {
+    const double err = std::abs(fit.weight(m) / dense_exact[m] - 1.0);
+    if (err > e.dense) {
+      e.dense = err;
+      e.worst_lag = m;
+    }
+  }
+  if (fit.max_lag > kDenseCheckEnd) {
+    for (const std::size_t m : log_spaced_lags(kDenseCheckEnd, fit.max_lag)) {
+      const double err = std::abs(fit.weight(m) / cq_weight(fit.scheme, fit.order, m) - 1.0);
+      if (err > e.sparse) {
+        e.sparse = err;
+        e.worst_lag = m;
+      }
+    }
+  }
+  return e;
+}
+
+// ---- The representation and the per-weight accuracy ------------------------------------------
+
+// c_m = −(sin πβ/π) ∫ e^{−(m−β)s}(1 − e^{−s})^β ds discretised by the trapezoidal rule in
+// u = ln s and nothing else: if the representation (or its sign, or the shift by β) were wrong,
+// this sum could not match the Gamma-ratio weights. Bound: the quadrature is built for ε/10
+// (discretisation) + 2·ε/100 (truncation), so ε covers it with margin.
+TEST(ExponentialFit, RawQuadratureReproducesTheWeights) {
+  constexpr double kTol = 1e-10;
+  for (const double beta : kOrders) {
+    ExponentialFitOptions o;
+    o.order = beta;
+    o.tolerance = kTol;
+    o.max_lag = kLargestLag;
+    o.compress = false;
+    const ExponentialFit raw = fit_exponentials(o);
+    const WeightErrors e = weight_errors(raw, gl_weights(beta, kDenseCheckEnd + 1));
+    EXPECT_LE(e.dense, kTol) << "beta " << beta;
+    EXPECT_LE(e.sparse, kTol) << "beta " << beta << " worst lag " << e.worst_lag;
+    o.compress = true;
+    EXPECT_LT(fit_exponentials(o).terms(), raw.terms()) << "compression must pay";
+    std::printf("raw quadrature beta=%.2f: J=%zu h=%.3f max rel err %.2e (dense) %.2e (to 1e8)\n",
+                beta, raw.terms(), raw.quadrature_step, e.dense, e.sparse);
+  }
+}
+
+// The reference itself: gl_weight (Gamma ratio, a few ulps) and the recurrence gl_weights
+// (≤ ~1e-12 by weights_test) agree on 0 … 3000, so the 1e-10 checks below measure the fit.
+TEST(ExponentialFit, ReferenceWeightsAgree) {
+  for (const double beta : kOrders) {
+    const std::vector<double> seq = gl_weights(beta, kDenseCheckEnd + 1);
+    for (std::size_t m = 2; m <= kDenseCheckEnd; m += 7)
+      ASSERT_NEAR(gl_weight(beta, m) / seq[m], 1.0, 1e-12) << beta << " " << m;
+  }
+  // BDF2: the 41-term convolution of cq_weight against the exact power-series recurrence.
+  for (const double beta : {0.5, 1.5}) {
+    const std::vector<double> seq = cq_weights(CqScheme::kBdf2, beta, kDenseCheckEnd + 1);
+    for (std::size_t m = 80; m <= kDenseCheckEnd; m += 13)
+      ASSERT_NEAR(cq_weight(CqScheme::kBdf2, beta, m) / seq[m], 1.0, 1e-12) << beta << " " << m;
+  }
+}
+
+TEST(ExponentialFit, EveryTailWeightWithinToleranceGl) {
+  constexpr double kTol = kDefaultFitTolerance;
+  for (const double beta : kOrders) {
+    ExponentialFitOptions o;
+    o.order = beta;
+    o.tolerance = kTol;
+    o.max_lag = kLargestLag;
+    const ExponentialFit fit = fit_exponentials(o);
+    const std::vector<double> exact = gl_weights(beta, kDenseCheckEnd + 1);
+    // The window is exact: the same numbers DirectHistory uses.
+    for (std::size_t m = 0; m < fit.window; ++m) ASSERT_EQ(fit.weight(m), exact[m]);
+    const WeightErrors e = weight_errors(fit, exact);
+    EXPECT_LE(e.dense, kTol) << "beta " << beta << " lag " << e.worst_lag;
+    EXPECT_LE(e.sparse, kTol) << "beta " << beta << " lag " << e.worst_lag;
+    for (std::size_t j = 0; j < fit.terms(); ++j) ASSERT_GT(fit.lambdas[j], 0.0);
+    std::printf(
+        "GL beta=%.2f eps=1e-10 N=1e8: n0=%zu K=%zu J=%zu max rel err %.2e (n0..3000) %.2e "
+        "(to 1e8), cancellation %.2f, fit %.1f ms\n",
+        beta, fit.window, fit.terms(), fit.quadrature_nodes, e.dense, e.sparse, fit.cancellation,
+        1e3 * fit.seconds);
+  }
+}
+
+TEST(ExponentialFit, EveryTailWeightWithinToleranceBdf2) {
+  constexpr double kTol = kDefaultFitTolerance;
+  for (const double beta : kOrders) {
+    ExponentialFitOptions o;
+    o.scheme = CqScheme::kBdf2;
+    o.order = beta;
+    o.tolerance = kTol;
+    o.max_lag = kLargestLag;
+    const ExponentialFit fit = fit_exponentials(o);
+    const std::vector<double> exact = cq_weights(CqScheme::kBdf2, beta, kDenseCheckEnd + 1);
+    for (std::size_t m = 0; m < fit.window; ++m) ASSERT_EQ(fit.weight(m), exact[m]);
+    const WeightErrors e = weight_errors(fit, exact);
+    EXPECT_LE(e.dense, kTol) << "beta " << beta << " lag " << e.worst_lag;
+    EXPECT_LE(e.sparse, kTol) << "beta " << beta << " lag " << e.worst_lag;
+    std::printf(
+        "BDF2 beta=%.2f eps=1e-10 N=1e8: n0=%zu K=%zu max rel err %.2e / %.2e, fit %.1f ms\n", beta,
+        fit.window, fit.terms(), e.dense, e.sparse, 1e3 * fit.seconds);
+  }
+}
+
+// Negative control: exponentials cannot follow the power law m^{−1−β} beyond the range they were
+// fitted on, so the checks above are sensitive to the range actually covered.
+TEST(ExponentialFit, FailsBeyondItsRange) {
+  ExponentialFitOptions o;
+  o.order = 0.75;
+  o.max_lag = 10'000;
+  const ExponentialFit fit = fit_exponentials(o);
+  EXPECT_LE(std::abs(fit.weight(10'000) / gl_weight(0.75, 10'000) - 1.0), o.tolerance);
+  EXPECT_GT(std::abs(fit.weight(1'000'000) / gl_weight(0.75, 1'000'000) - 1.0), 1e-3);
+}
+
+// K(N_max, ε) for GL β = 0.5 (and 1.5): recorded, and asserted to grow like log N (the brief's
+// K(1e8) ≤ 2.5 K(1e4)) and like log(1/ε) (K(·, 1e-12) ≤ 2.5 K(·, 1e-6)). Also never decreasing
+// in N.
+TEST(ExponentialFit, TermsGrowLogarithmically) {
+  constexpr double kTols[] = {1e-6, 1e-8, 1e-10, 1e-12};
+  constexpr std::size_t kLags[] = {1'000, 10'000, 100'000, 1'000'000, 10'000'000, 100'000'000};
+  for (const double beta : {0.5, 1.5}) {
+    std::size_t k_table[4][6];
+    std::printf("K for GL beta=%.1f (n0 = 16); rows eps, columns N_max = 1e3 … 1e8; [fit ms]\n",
+                beta);
+    for (std::size_t i = 0; i < 4; ++i) {
+      std::printf("  eps=%.0e:", kTols[i]);
+      for (std::size_t j = 0; j < 6; ++j) {
+        ExponentialFitOptions o;
+        o.order = beta;
+        o.tolerance = kTols[i];
+        o.max_lag = kLags[j];
+        const ExponentialFit fit = fit_exponentials(o);
+        k_table[i][j] = fit.terms();
+        EXPECT_LE(fit.max_relative_error, kTols[i]);
+        std::printf(" %3zu [%4.1f]", fit.terms(), 1e3 * fit.seconds);
+        RecordProperty(
+            "K_beta" + std::to_string(beta) + "_eps" + std::to_string(i) + "_N" + std::to_string(j),
+            static_cast<int>(fit.terms()));
+        if (j > 0) {
+          EXPECT_GE(k_table[i][j], k_table[i][j - 1]) << kTols[i] << " " << kLags[j];
+        }
+      }
+      std::printf("\n");
+      EXPECT_LE(static_cast<double>(k_table[i][5]), 2.5 * static_cast<double>(k_table[i][1]))
+          << "eps " << kTols[i];
+    }
+    for (std::size_t j = 0; j < 6; ++j)
+      EXPECT_LE(static_cast<double>(k_table[3][j]), 2.5 * static_cast<double>(k_table[0][j]));
+  }
+}
+
+// ---- The history sum ---------------------------------------------------------------------------
+
+// A rough sequence: a random walk (every past value matters for the memory) plus white noise,
+// i.e. what a randomly forced trajectory looks like at the step scale. Fixed seed.
+Eigen::MatrixXd rough_sequence(std::size_t n, Eigen::Index d, unsigned seed) {
+  std::mt19937_64 gen(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::MatrixXd xs(d, static_cast<Eigen::Index>(n));
+  Eigen::VectorXd walk = Eigen::VectorXd::Zero(d);
+  const double step = 1.0 / std::sqrt(static_cast<double>(n));
+  for (Eigen::Index k = 0; k < xs.cols(); ++k) {
+    for (Eigen::Index i = 0; i < d; ++i) {
+      walk(i) += step * normal(gen);
+      xs(i, k) = 1.0 + walk(i) + 0.5 * normal(gen);
+    }
+  }
+  return xs;
+}
+
+double abs_weight_sum(double beta, std::size_t n) {
+  double s = 0.0;
+  for (const double c : gl_weights(beta, n)) s += std::abs(c);
+  return s;
+}
+
+// Every step is compared in optimised builds. Unoptimised builds (dev/Debug preset, where the
+// O(N² d) DirectHistory reference takes minutes) compare the first 4 n0 steps and then every 7th
+// step — 7 is coprime to the window, so every ring phase is still visited.
+#ifdef NDEBUG
+constexpr std::size_t kDirectCheckStride = 1;
+#else
+constexpr std::size_t kDirectCheckStride = 7;
+#endif
+
+TEST(FastHistory, MatchesDirectHistory) {
+  // β = 0.3 (slowest-decaying weights) at the full size; β = 1.5 on a quarter of it to keep the
+  // O(N² d) reference affordable.
+  constexpr Eigen::Index kD = 8;
+  for (const auto& [beta, kN] :
+       {std::pair{0.3, std::size_t{20'000}}, std::pair{1.5, std::size_t{5'000}}}) {
+    const Eigen::MatrixXd xs = rough_sequence(kN, kD, 20240611u);
+    const double max_x = xs.cwiseAbs().maxCoeff();
+    FastHistory fast(beta, kD, kN);
+    DirectHistory direct(beta, kD, kN);
+    Eigen::VectorXd a(kD), b(kD);
+    double max_diff = 0.0, max_early = 0.0;
+    for (std::size_t k = 0; k < kN; ++k) {
+      fast.push(xs.col(static_cast<Eigen::Index>(k)));
+      direct.push(xs.col(static_cast<Eigen::Index>(k)));
+      if (k >= 4 * fast.window() && k % kDirectCheckStride != 0 && k + 1 != kN) continue;
+      fast.sum(a);
+      direct.sum(b);
+      const double diff = (a - b).cwiseAbs().maxCoeff();
+      max_diff = std::max(max_diff, diff);
+      if (k < fast.window()) max_early = std::max(max_early, diff);
+    }
+    // |S − S_direct| ≤ Σ_m |ĉ_m − c_m| |x| ≤ ε Σ|c_m| max|x| (relative error ε per tail weight);
+    // both sums' round-off is ~ (n0 + K) ε_mach Σ|c| max|x| ≪ that.
+    const double weight_sum = abs_weight_sum(beta, kN);
+    const double bound = 1e-10 * weight_sum * max_x;
+    EXPECT_LE(max_diff, bound) << "beta " << beta;
+    // Before the tail starts both are the same finite sum, up to summation order: 4 n0 ε.
+    EXPECT_LE(max_early, 4.0 * static_cast<double>(fast.window()) * kEps * weight_sum * max_x);
+    std::printf(
+        "vs direct beta=%.2f N=%zu d=8: K=%zu max|S-S_direct| = %.2e, bound %.2e (ratio %.1e)\n",
+        beta, kN, fast.terms(), max_diff, bound, max_diff / bound);
+  }
+}
+
+// Exact linear convolution by FFT (Eigen's unsupported FFT, kissfft backend), length 2^21 for
+// N = 10^6 lags, compared at every step with the fast history on d = 2 rough sequences.
+TEST(FastHistory, MatchesFftConvolutionMillionSteps) {
+  constexpr std::size_t kN = 1'000'000;
+  constexpr Eigen::Index kD = 2;
+  constexpr std::size_t kFftSize = std::size_t{1} << 21;  // ≥ 2N − 1: no wrap-around
+  const Eigen::MatrixXd xs = rough_sequence(kN, kD, 777u);
+  const double max_x = xs.cwiseAbs().maxCoeff();
+  for (const double beta : {0.3, 1.8}) {
+    const std::vector<double> c = gl_weights(beta, kN);
+    Eigen::FFT<double> fft;
+    std::vector<double> padded(kFftSize, 0.0);
+    std::copy(c.begin(), c.end(), padded.begin());
+    std::vector<std::complex<double>> c_hat, x_hat;
+    fft.fwd(c_hat, padded);
+    double c_norm2 = 0.0;
+    for (const double w : c) c_norm2 += w * w;
+    Eigen::MatrixXd exact(kD, static_cast<Eigen::Index>(kN));
+    std::vector<double> conv;
+    for (Eigen::Index i = 0; i < kD; ++i) {
+      std::fill(padded.begin(), padded.end(), 0.0);
+      for (std::size_t k = 0; k < kN; ++k) padded[k] = xs(i, static_cast<Eigen::Index>(k));
+      fft.fwd(x_hat, padded);
+      for (std::size_t f = 0; f < kFftSize; ++f) x_hat[f] *= c_hat[f];
+      fft.inv(conv, x_hat);
+      for (std::size_t k = 0; k < kN; ++k) exact(i, static_cast<Eigen::Index>(k)) = conv[k];
+    }
+    FastHistory fast(beta, kD, kN);
+    Eigen::VectorXd s(kD);
+    double max_diff = 0.0;
+    for (std::size_t k = 0; k < kN; ++k) {
+      fast.push(xs.col(static_cast<Eigen::Index>(k)));
+      fast.sum(s);
+      max_diff =
+          std::max(max_diff, (s - exact.col(static_cast<Eigen::Index>(k))).cwiseAbs().maxCoeff());
+    }
+    // ε Σ|c| max|x| as above, plus the FFT's own error: per entry at most
+    // ~ log2(L) ε_mach ‖c‖₂ ‖x‖₂ (normwise bound of FFT convolution); here ≈ 1e-12·max|x|,
+    // a hundredth of the first term.
+    const double fft_error = std::log2(static_cast<double>(kFftSize)) * kEps * std::sqrt(c_norm2) *
+                             max_x * std::sqrt(static_cast<double>(kN));
+    const double bound = 1e-10 * abs_weight_sum(beta, kN) * max_x + fft_error;
+    EXPECT_LE(max_diff, bound) << "beta " << beta;
+    std::printf(
+        "vs FFT beta=%.2f N=1e6 d=2: K=%zu max|S-S_exact| = %.2e, bound %.2e (FFT part %.1e)\n",
+        beta, fast.terms(), max_diff, bound, fft_error);
+  }
+}
+
+TEST(FastHistory, Bdf2MatchesDirectConvolution) {
+  constexpr std::size_t kN = 5'000;
+  constexpr Eigen::Index kD = 3;
+  const Eigen::MatrixXd xs = rough_sequence(kN, kD, 99u);
+  const double max_x = xs.cwiseAbs().maxCoeff();
+  for (const double beta : {0.5, 1.5}) {
+    const std::vector<double> w = cq_weights(CqScheme::kBdf2, beta, kN);
+    double weight_sum = 0.0;
+    for (const double x : w) weight_sum += std::abs(x);
+    const auto history = make_fast_history(beta, kD, kN, 1e-10, CqScheme::kBdf2);
+    Eigen::VectorXd s(kD);
+    double max_diff = 0.0;
+    for (std::size_t k = 0; k < kN; ++k) {
+      history->push(xs.col(static_cast<Eigen::Index>(k)));
+      history->sum(s);
+      Eigen::VectorXd ref = Eigen::VectorXd::Zero(kD);
+      for (std::size_t m = 0; m <= k; ++m) ref += w[m] * xs.col(static_cast<Eigen::Index>(k - m));
+      max_diff = std::max(max_diff, (s - ref).cwiseAbs().maxCoeff());
+    }
+    EXPECT_LE(max_diff, 1e-10 * weight_sum * max_x) << "beta " << beta;
+  }
+}
+
+TEST(FastHistory, ClearRestartsExactly) {
+  const Eigen::MatrixXd xs = rough_sequence(300, 2, 5u);
+  FastHistory fast(0.75, 2, 300);
+  Eigen::VectorXd s(2);
+  std::vector<Eigen::VectorXd> first;
+  for (Eigen::Index k = 0; k < 300; ++k) {
+    fast.push(xs.col(k));
+    fast.sum(s);
+    first.push_back(s);
+  }
+  fast.clear();
+  EXPECT_EQ(fast.size(), 0u);
+  for (Eigen::Index k = 0; k < 300; ++k) {
+    fast.push(xs.col(k));
+    fast.sum(s);
+    ASSERT_TRUE((s.array() == first[static_cast<std::size_t>(k)].array()).all()) << k;
+  }
+}
+
+TEST(FastHistory, ShortCapacityIsExact) {
+  // max_lag < n0: no tail at all (K = 0); the sum is the direct one up to summation order.
+  const Eigen::MatrixXd xs = rough_sequence(10, 3, 6u);
+  ExponentialFitOptions o;
+  o.order = 1.25;
+  o.max_lag = 9;
+  FastHistory fast(shared_exponential_fit(o), 3, 10);
+  DirectHistory direct(1.25, 3, 10);
+  EXPECT_EQ(fast.terms(), 0u);
+  Eigen::VectorXd a(3), b(3);
+  for (Eigen::Index k = 0; k < 10; ++k) {
+    fast.push(xs.col(k));
+    direct.push(xs.col(k));
+    fast.sum(a);
+    direct.sum(b);
+    // Same ≤ 10 products, summed in another order: 4·10 ε Σ|c| max|x|, Σ|c| ≤ 2^{1.25} < 3.
+    EXPECT_LE((a - b).cwiseAbs().maxCoeff(), 4 * 10 * kEps * 3.0 * xs.cwiseAbs().maxCoeff());
+  }
+}
+
+TEST(FastHistory, SharesCachedFits) {
+  clear_exponential_fit_cache();
+  EXPECT_EQ(exponential_fit_cache_size(), 0u);
+  // Capacities 1000 and 1020 both round to max_lag 1024: one fit.
+  FastHistory a(0.6, 1, 1000), b(0.6, 4, 1020);
+  EXPECT_EQ(&a.fit(), &b.fit());
+  EXPECT_EQ(a.fit().max_lag, 1024u);
+  EXPECT_EQ(fast_history_fit_lag(1025), 1024u);
+  EXPECT_EQ(fast_history_fit_lag(1026), 2048u);
+  EXPECT_EQ(fast_history_fit_lag(1), 1u);
+  FastHistory c(0.6, 1, 5000);
+  EXPECT_NE(&a.fit(), &c.fit());
+  EXPECT_EQ(exponential_fit_cache_size(), 2u);
+  // A fit for more lags serves a shorter history: c's capacity 5000 rounds to max_lag 8192.
+  ExponentialFitOptions o;
+  o.order = 0.6;
+  o.max_lag = 8192;
+  FastHistory d(shared_exponential_fit(o), 2, 100);
+  EXPECT_EQ(&d.fit(), &c.fit());
+  clear_exponential_fit_cache();
+}
+
+TEST(FastHistory, RejectsBadArguments) {
+  // Populate the cache first: invalid options must not be answered from it (a NaN order once
+  // compared equivalent to every cached key).
+  EXPECT_NO_THROW(FastHistory(0.3, 1, 100));
+  EXPECT_THROW(FastHistory(1.0, 1, 100), std::invalid_argument);  // integer: LocalHistory
+  EXPECT_THROW(FastHistory(0.0, 1, 100), std::invalid_argument);
+  EXPECT_THROW(FastHistory(2.0, 1, 100), std::invalid_argument);
+  EXPECT_THROW(FastHistory(2.5, 1, 100), std::invalid_argument);
+  EXPECT_THROW(FastHistory(-0.5, 1, 100), std::invalid_argument);
+  EXPECT_THROW(FastHistory(std::nan(""), 1, 100), std::invalid_argument);
+  EXPECT_THROW(FastHistory(0.5, 0, 100), std::invalid_argument);
+  EXPECT_THROW(FastHistory(0.5, 1, 0), std::invalid_argument);
+  EXPECT_THROW(FastHistory(0.5, 1, 100, 1e-15), std::invalid_argument);
+  EXPECT_THROW(FastHistory(0.5, 1, 100, 0.1), std::invalid_argument);
+  EXPECT_THROW(FastHistory(nullptr, 1, 100), std::invalid_argument);
+  // LocalHistory reports capacity SIZE_MAX; a fast history cannot promise that many lags.
+  EXPECT_THROW(FastHistory(0.5, 1, static_cast<std::size_t>(-1)), std::invalid_argument);
+  ExponentialFitOptions o;
+  o.max_lag = 100;
+  EXPECT_THROW(FastHistory(shared_exponential_fit(o), 1, 102), std::invalid_argument);
+  EXPECT_NO_THROW(FastHistory(shared_exponential_fit(o), 1, 101));
+  o.scheme = CqScheme::kTrapezoidal;
+  EXPECT_THROW(fit_exponentials(o), std::invalid_argument);
+  o.scheme = CqScheme::kGrunwaldLetnikov;
+  o.window = 1;
+  EXPECT_THROW(fit_exponentials(o), std::invalid_argument);
+  o.max_lag = 0;
+  o.window = 0;
+  EXPECT_THROW(fit_exponentials(o), std::invalid_argument);
+}
+
+// push() and sum() do not allocate (DESIGN §4), for d = 1 and d = 50, across the switch-on of
+// the tail at k = n0; the control shows the counter is live.
+TEST(FastHistory, NoAllocationInPushAndSum) {
+  if (!FRACVI_COUNT_MALLOC) GTEST_SKIP() << "malloc interposition unavailable (sanitizer build)";
+  for (const Eigen::Index d : {Eigen::Index{1}, Eigen::Index{50}}) {
+    const Eigen::MatrixXd xs = rough_sequence(2000, d, 11u);
+    FastHistory fast(0.75, d, 2000);
+    Eigen::VectorXd s(d);
+    g_allocations = 0;
+    g_counting = true;
+    for (Eigen::Index k = 0; k < xs.cols(); ++k) {
+      fast.push(xs.col(k));
+      fast.sum(s);
+    }
+    g_counting = false;
+    EXPECT_EQ(g_allocations, 0u) << "d " << d;
+  }
+  g_allocations = 0;
+  g_counting = true;
+  const Eigen::VectorXd control = Eigen::VectorXd::Ones(100);
+  g_counting = false;
+  EXPECT_GT(g_allocations, 0u) << "the counter must see an Eigen allocation";
+  EXPECT_EQ(control.size(), 100);
+}
+
+}  // namespace
+}  // namespace fracvi

@@ -1,0 +1,200 @@
+"""End-to-end tests of `fracvi bvp`, `fracvi residual` and `fracvi run` with general Lagrangians.
+
+Run by ctest as: python3 cli_lagrangian_test.py /path/to/fracvi /path/to/tests/lagrangian/data
+Contracts: exit 0 success, 1 numerical failure (files still written), 2 bad input with exactly one
+line on stderr naming the key or flag, and nothing on stdout.
+"""
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+FRACVI = None
+DATA = None
+
+
+def run(*args):
+    return subprocess.run([FRACVI, *args], capture_output=True, text=True, timeout=300)
+
+
+def data(name):
+    return os.path.join(DATA, name)
+
+
+def read_csv(path):
+    with open(path, encoding="utf-8") as f:
+        return list(csv.DictReader(f))
+
+
+def read_json(path):
+    with open(path, encoding="utf-8") as f:
+        return json.load(f)
+
+
+class Bvp(unittest.TestCase):
+    def test_coupled_lagrangian_converges(self):
+        with tempfile.TemporaryDirectory() as out:
+            r = run("bvp", data("coupled_bvp.toml"), "--out", out, "--quiet")
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertEqual(r.stdout, "")
+            s = read_json(os.path.join(out, "summary.json"))
+            self.assertEqual(s["status"], "success")
+            self.assertLessEqual(s["residual_norm"], 1e-10)
+            self.assertEqual(s["action_sum"], "extended")
+            rows = read_csv(os.path.join(out, "trajectory.csv"))
+            self.assertEqual(list(rows[0].keys()),
+                             ["t", "x1", "x2", "y1", "y2", "residual_x", "residual_y"])
+            self.assertEqual(len(rows), 61)
+            self.assertEqual([float(rows[0]["x1"]), float(rows[0]["x2"])], [0.3, -0.2])
+            self.assertEqual([float(rows[-1]["y1"]), float(rows[-1]["y2"])], [0.3, -0.2])
+            self.assertLessEqual(max(float(r["residual_x"]) for r in rows), 1e-10)
+            # The problem.toml written back solves to the same curves.
+            r2 = run("bvp", os.path.join(out, "problem.toml"), "--out", out + "/again", "--quiet")
+            self.assertEqual(r2.returncode, 0, r2.stderr)
+            again = read_csv(os.path.join(out, "again", "trajectory.csv"))
+            self.assertEqual([r["x1"] for r in rows], [r["x1"] for r in again])
+
+    def test_mechanical_bvp_reproduces_run(self):
+        with tempfile.TemporaryDirectory() as out:
+            r = run("run", data("pendulum_mechanical.toml"), "--out", out + "/ivp", "--quiet",
+                    "--no-plot")
+            self.assertEqual(r.returncode, 0, r.stderr)
+            ivp = read_csv(os.path.join(out, "ivp", "trajectory.csv"))
+            end = "[%s,%s]" % (ivp[-1]["x1"], ivp[-1]["x2"])
+            r = run("bvp", data("pendulum_mechanical.toml"), "--out", out + "/bvp", "--quiet",
+                    "--set", "boundary.start=[0.4,-0.3]", "--set", "boundary.end=" + end)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            bvp = read_csv(os.path.join(out, "bvp", "trajectory.csv"))
+            worst = max(abs(float(a[c]) - float(b[c])) for a, b in zip(ivp, bvp)
+                        for c in ("x1", "x2"))
+            self.assertLessEqual(worst, 1e-12)
+            mirror = max(abs(float(a["y1"]) - float(b["x1"])) for a, b in zip(bvp, reversed(bvp)))
+            self.assertLessEqual(mirror, 1e-12)
+
+    def test_newton_failure_writes_best_iterate(self):
+        with tempfile.TemporaryDirectory() as out:
+            r = run("bvp", data("coupled_bvp.toml"), "--out", out, "--quiet",
+                    "--set", "method.newton_max_iterations=1")
+            self.assertEqual(r.returncode, 1, r.stderr)
+            s = read_json(os.path.join(out, "summary.json"))
+            self.assertEqual(s["status"], "newton-failure")
+            self.assertIn("no convergence", s["message"])
+            self.assertTrue(os.path.exists(os.path.join(out, "trajectory.csv")))
+
+    def test_printed_sum_is_selectable(self):
+        with tempfile.TemporaryDirectory() as out:
+            r = run("bvp", data("coupled_bvp.toml"), "--out", out, "--quiet", "--sum", "printed",
+                    "--solver", "dense")
+            self.assertEqual(r.returncode, 0, r.stderr)
+            s = read_json(os.path.join(out, "summary.json"))
+            self.assertEqual(s["action_sum"], "printed")
+            self.assertIn("dense LU", s["linear_solver"])
+
+
+class Residual(unittest.TestCase):
+    EXACT_X = "exp(-0.2*t)*sin(sqrt(3.96)*t)"
+    EXACT_Y = "exp(-0.2*(2-t))*sin(sqrt(3.96)*(2-t))"
+
+    def values(self, *args):
+        r = run("residual", data("oscillator.toml"), *args)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        return [[float(v) for v in line.split()] for line in r.stdout.splitlines()]
+
+    def test_damped_oscillator_with_mirror_solves_fracel(self):
+        rows = self.values("--x", self.EXACT_X, "--y", self.EXACT_Y, "--t", "0.5,1,1.5")
+        self.assertEqual([row[0] for row in rows], [0.5, 1.0, 1.5])
+        for row in rows:
+            self.assertLessEqual(max(abs(v) for v in row[1:]), 1e-12)
+
+    def test_non_solution_has_order_one_residual(self):
+        rows = self.values("--x", "sin(2*t)", "--y", "sin(2*(2-t))", "--t", "1")
+        self.assertGreater(abs(rows[0][1]), 0.1)
+        self.assertGreater(abs(rows[0][2]), 0.1)
+
+    def test_commas_inside_parentheses_stay_in_one_formula(self):
+        r = run("residual", data("coupled_bvp.toml"), "--x", "pow(t, 2),sin(t)",
+                "--y", "1.5-t,0", "--t", "0.7")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(len(r.stdout.split()), 5)
+
+
+class BadInput(unittest.TestCase):
+    def assert_bad(self, args, *needles):
+        r = run(*args)
+        self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+        self.assertEqual(r.stdout, "")
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+        for n in needles:
+            self.assertIn(n, r.stderr)
+
+    def test_lagrangian_variable_that_does_not_exist_for_d(self):
+        self.assert_bad(["bvp", data("coupled_bvp.toml"), "--set",
+                         "model.lagrangian=0.5*xdot1^2 + 0.5*ydot1^2 - x3"],
+                        "model.lagrangian", "x3", "column")
+
+    def test_singular_velocity_hessian(self):
+        self.assert_bad(["bvp", data("coupled_bvp.toml"), "--set",
+                         "model.lagrangian=0.5*(xdot1^2 + xdot2^2) + 0.5*ydot1^2 - dx1*dy1"],
+                        "singular", "ydot")
+        self.assert_bad(["run", data("pendulum_lagrangian.toml"), "--set",
+                         "model.lagrangian=0.5*xdot1^2 + 0.5*(ydot1^2 + ydot2^2) - x2^2"],
+                        "singular", "xdot", "initial data")
+
+    def test_run_refuses_coupled_lagrangian_and_points_to_bvp(self):
+        self.assert_bad(["run", data("coupled_bvp.toml"), "--set", "initial.position=[0.1,0.2]"],
+                        "fracvi bvp", "involves y")
+
+    def test_run_refuses_boundary_only_file(self):
+        self.assert_bad(["run", data("coupled_bvp.toml")], "[initial]", "fracvi bvp")
+
+    def test_bvp_needs_boundary(self):
+        self.assert_bad(["bvp", data("oscillator.toml")], "[boundary]")
+
+    def test_lagrangian_excludes_mechanical_fields(self):
+        self.assert_bad(["bvp", data("coupled_bvp.toml"), "--set", "model.mass=1.0"],
+                        "model.mass", "model.lagrangian")
+
+    def test_caputo_is_refused_for_variational_problems(self):
+        self.assert_bad(["bvp", data("pendulum_mechanical.toml"), "--set", "boundary.start=[0,0]",
+                         "--set", "boundary.end=[0,0]", "--set", "model.alpha=0.3",
+                         "--set", "model.convention=caputo"], "caputo", "riemann-liouville")
+
+    def test_residual_bad_curves(self):
+        osc = data("oscillator.toml")
+        self.assert_bad(["residual", osc, "--x", "t,t", "--y", "0", "--t", "1"], "--x", "2 components")
+        self.assert_bad(["residual", osc, "--x", "s", "--y", "0", "--t", "1"], "--x", "'s'")
+        self.assert_bad(["residual", osc, "--x", "t", "--y", "0", "--t", "3"], "--t", "outside")
+        # x(a) != 0: D^alpha_- x is unbounded at a.
+        self.assert_bad(["residual", osc, "--x", "1+t", "--y", "0", "--t", "1"], "x(a) = 0")
+
+    def test_bad_flags(self):
+        self.assert_bad(["bvp", data("coupled_bvp.toml"), "--sum", "both"], "--sum")
+        self.assert_bad(["bvp", data("coupled_bvp.toml"), "--solver", "magic"], "--solver")
+        self.assert_bad(["bvp", data("coupled_bvp.toml"), "--tolerance", "0"], "--tolerance")
+
+
+class RunWithLagrangian(unittest.TestCase):
+    def test_mechanical_lagrangian_matches_mechanical_fields(self):
+        with tempfile.TemporaryDirectory() as out:
+            a = run("run", data("pendulum_mechanical.toml"), "--out", out + "/a", "--quiet",
+                    "--no-plot")
+            b = run("run", data("pendulum_lagrangian.toml"), "--out", out + "/b", "--quiet",
+                    "--no-plot")
+            self.assertEqual(a.returncode, 0, a.stderr)
+            self.assertEqual(b.returncode, 0, b.stderr)
+            ra = read_csv(os.path.join(out, "a", "trajectory.csv"))
+            rb = read_csv(os.path.join(out, "b", "trajectory.csv"))
+            worst = max(abs(float(x[c]) - float(y[c])) for x, y in zip(ra, rb)
+                        for c in ("x1", "x2", "v1", "v2"))
+            self.assertLessEqual(worst, 1e-13)
+            s = read_json(os.path.join(out, "b", "summary.json"))
+            self.assertIn("lagrangian", s["problem"]["model"])
+
+
+if __name__ == "__main__":
+    FRACVI, DATA = sys.argv[1], sys.argv[2]
+    unittest.main(argv=sys.argv[:1], verbosity=1)
