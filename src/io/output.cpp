@@ -37,27 +37,24 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   return o;
 }
 
-namespace {
-
-nlohmann::json row_json(const RowMatrixXd& m, Eigen::Index row) {
-  nlohmann::json a = nlohmann::json::array();
-  if (m.rows() == 0) return a;
-  for (Eigen::Index j = 0; j < m.cols(); ++j) a.push_back(m(row, j));
-  return a;
-}
-
-// JSON has no NaN: non-finite numbers become null.
-nlohmann::json number(double v) {
+nlohmann::json json_number(double v) {
   return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
 }
 
-void append_number(std::string& out, double v) {
+nlohmann::json json_row(const RowMatrixXd& m, Eigen::Index row) {
+  nlohmann::json a = nlohmann::json::array();
+  if (m.rows() == 0) return a;
+  for (Eigen::Index j = 0; j < m.cols(); ++j) a.push_back(json_number(m(row, j)));
+  return a;
+}
+
+void append_csv_number(std::string& out, double v) {
   char buf[32];
   const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, 17);
   out.append(buf, r.ptr);
 }
 
-void write_atomically(const std::filesystem::path& file, const std::string& content) {
+void write_file_atomically(const std::filesystem::path& file, const std::string& content) {
   const auto tmp = std::filesystem::path(file.string() + ".tmp");
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
@@ -68,25 +65,23 @@ void write_atomically(const std::filesystem::path& file, const std::string& cont
   std::filesystem::rename(tmp, file);
 }
 
-}  // namespace
-
 nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
   const Eigen::Index last = static_cast<Eigen::Index>(s.steps_done);
   nlohmann::json reference_error;  // null without a [reference]
   if (!spec.reference.empty())
-    reference_error = number(max_error(s, parse_reference(spec.reference)));
+    reference_error = json_number(max_error(s, parse_reference(spec.reference)));
   return {
       {"status", s.ok() ? "success" : std::string(to_string(s.status))},
       {"message", s.message},
       {"steps", s.steps_done},
       {"steps_requested", spec.steps},
-      {"final_time", s.t.size() ? number(s.t[last]) : nlohmann::json()},
-      {"final_position", row_json(s.x, last)},
-      {"final_velocity", row_json(s.v, last)},
-      {"final_energy", s.energy.size() ? number(s.energy[last]) : nlohmann::json()},
-      {"mirror_error", number(s.mirror_error)},
+      {"final_time", s.t.size() ? json_number(s.t[last]) : nlohmann::json()},
+      {"final_position", json_row(s.x, last)},
+      {"final_velocity", json_row(s.v, last)},
+      {"final_energy", s.energy.size() ? json_number(s.energy[last]) : nlohmann::json()},
+      {"mirror_error", json_number(s.mirror_error)},
       {"reference_error", reference_error},
-      {"max_balance_error", number(s.max_balance_error)},
+      {"max_balance_error", json_number(s.max_balance_error)},
       {"newton_iterations", s.newton_iterations},
       {"max_newton_iterations_per_step", s.max_newton_iterations_per_step},
       {"wall_seconds", s.wall_time_seconds},
@@ -109,17 +104,17 @@ void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
                                static_cast<std::size_t>(2 * d + 4) * 24);
   for (Eigen::Index k = 0; k < rows && k < s.t.size(); ++k) {
     if (k % spec.every != 0 && k != rows - 1) continue;
-    append_number(csv, s.t[k]);
-    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_number(csv, s.x(k, i));
-    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_number(csv, s.v(k, i));
-    csv += ',', append_number(csv, s.energy[k]);
-    csv += ',', append_number(csv, s.dissipated[k]);
-    csv += ',', append_number(csv, s.balance[k]);
+    append_csv_number(csv, s.t[k]);
+    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_csv_number(csv, s.x(k, i));
+    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_csv_number(csv, s.v(k, i));
+    csv += ',', append_csv_number(csv, s.energy[k]);
+    csv += ',', append_csv_number(csv, s.dissipated[k]);
+    csv += ',', append_csv_number(csv, s.balance[k]);
     csv += '\n';
   }
-  write_atomically(dir / "trajectory.csv", csv);
-  write_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
-  write_atomically(dir / "problem.toml", to_toml(spec));
+  write_file_atomically(dir / "trajectory.csv", csv);
+  write_file_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
+  write_file_atomically(dir / "problem.toml", to_toml(spec));
 }
 
 }  // namespace fracvi

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 
+#include "fracvi/io/output.hpp"
 #include "fracvi/model/expression_potential.hpp"
 
 namespace fracvi {
@@ -257,61 +258,30 @@ InitialValueProblem make_lagrangian_initial_value_problem(const ProblemSpec& spe
   return p;
 }
 
-namespace {
-
-nlohmann::json number(double v) {
-  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
-}
-
-nlohmann::json row_json(const RowMatrixXd& m, Eigen::Index row) {
-  nlohmann::json a = nlohmann::json::array();
-  for (Eigen::Index j = 0; j < m.cols(); ++j) a.push_back(number(m(row, j)));
-  return a;
-}
-
-void append_number(std::string& out, double v) {
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general, 17);
-  out.append(buf, r.ptr);
-}
-
-void write_atomically(const std::filesystem::path& file, const std::string& content) {
-  const auto tmp = std::filesystem::path(file.string() + ".tmp");
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error("cannot write " + tmp.string());
-    out << content;
-    if (!out.flush()) throw std::runtime_error("error while writing " + tmp.string());
-  }
-  std::filesystem::rename(tmp, file);
-}
-
-}  // namespace
-
 nlohmann::json make_bvp_summary(const ProblemSpec& spec, const BvpSolution& s) {
   const Eigen::Index n = s.x.rows() - 1;
   const double mirror =
       s.x.rows() > 0 ? (s.y - s.x.colwise().reverse()).cwiseAbs().maxCoeff() : 0.0;
   nlohmann::json history = nlohmann::json::array();
-  for (double r : s.residual_history) history.push_back(number(r));
+  for (double r : s.residual_history) history.push_back(json_number(r));
   return {
       {"status", s.ok() ? "success" : std::string(to_string(s.status))},
       {"message", s.message},
       {"steps", n},
       {"action_sum", s.sum},
-      {"residual_norm", number(s.residual_norm)},
-      {"residual_floor", number(s.residual_floor)},
+      {"residual_norm", json_number(s.residual_norm)},
+      {"residual_floor", json_number(s.residual_floor)},
       {"residual_tolerance", s.residual_tolerance},
       {"residual_history", history},
       {"newton_iterations", s.newton_iterations},
       {"linear_iterations", s.linear_iterations},
       {"linear_solver", s.linear_solver},
       {"wall_time_seconds", s.wall_time_seconds},
-      {"mirror_error", number(mirror)},
-      {"x_start", row_json(s.x, 0)},
-      {"x_end", row_json(s.x, n)},
-      {"y_start", row_json(s.y, 0)},
-      {"y_end", row_json(s.y, n)},
+      {"mirror_error", json_number(mirror)},
+      {"x_start", json_row(s.x, 0)},
+      {"x_end", json_row(s.x, n)},
+      {"y_start", json_row(s.y, 0)},
+      {"y_end", json_row(s.y, n)},
       {"problem", to_json(spec)},
   };
 }
@@ -326,17 +296,17 @@ void write_bvp_output(const std::filesystem::path& dir, const ProblemSpec& spec,
   csv += ",residual_x,residual_y\n";
   for (Eigen::Index k = 0; k < rows; ++k) {
     if (k % spec.every != 0 && k != rows - 1) continue;
-    append_number(csv, s.t[k]);
-    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_number(csv, s.x(k, i));
-    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_number(csv, s.y(k, i));
+    append_csv_number(csv, s.t[k]);
+    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_csv_number(csv, s.x(k, i));
+    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_csv_number(csv, s.y(k, i));
     const bool has = s.x_residual.rows() == rows;
-    csv += ',', append_number(csv, has ? s.x_residual.row(k).cwiseAbs().maxCoeff() : NAN);
-    csv += ',', append_number(csv, has ? s.y_residual.row(k).cwiseAbs().maxCoeff() : NAN);
+    csv += ',', append_csv_number(csv, has ? s.x_residual.row(k).cwiseAbs().maxCoeff() : NAN);
+    csv += ',', append_csv_number(csv, has ? s.y_residual.row(k).cwiseAbs().maxCoeff() : NAN);
     csv += '\n';
   }
-  write_atomically(dir / "trajectory.csv", csv);
-  write_atomically(dir / "summary.json", make_bvp_summary(spec, s).dump(2) + "\n");
-  write_atomically(dir / "problem.toml", to_toml(spec));
+  write_file_atomically(dir / "trajectory.csv", csv);
+  write_file_atomically(dir / "summary.json", make_bvp_summary(spec, s).dump(2) + "\n");
+  write_file_atomically(dir / "problem.toml", to_toml(spec));
 }
 
 }  // namespace fracvi

@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/integrate/solution.hpp"
@@ -14,6 +15,16 @@ namespace fracvi {
 /// folded in as −f(t)·x), M, R, α, convention, initial data, grid.
 InitialValueProblem make_initial_value_problem(const ProblemSpec& spec);
 IntegratorOptions make_integrator_options(const ProblemSpec& spec);
+
+/// JSON value of a double; non-finite numbers become null (JSON has no NaN).
+nlohmann::json json_number(double v);
+/// Row `row` of `m` as a JSON array (non-finite entries null; empty if m has no rows).
+nlohmann::json json_row(const RowMatrixXd& m, Eigen::Index row);
+/// Appends v with 17 significant digits (enough to round-trip every double).
+void append_csv_number(std::string& out, double v);
+/// Writes `content` to file.tmp and renames it to `file`, so that a crash never leaves a
+/// half-written file under the final name. Throws std::runtime_error on I/O failure.
+void write_file_atomically(const std::filesystem::path& file, const std::string& content);
 
 /// summary.json's content: status, message, steps, final state, diagnostics, statistics and the
 /// fully resolved problem (so the run can be reproduced from its output).
