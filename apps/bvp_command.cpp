@@ -13,20 +13,6 @@
 
 namespace fracvi::cli {
 
-namespace {
-
-std::string row_text(const RowMatrixXd& m, Eigen::Index row) {
-  std::string s = "[";
-  for (Eigen::Index j = 0; j < m.cols(); ++j) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%s%.10g", j ? ", " : "", m(row, j));
-    s += buf;
-  }
-  return s + "]";
-}
-
-}  // namespace
-
 Command add_bvp_command(CLI::App& parent) {
   struct Options {
     std::string file;

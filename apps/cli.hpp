@@ -2,6 +2,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <Eigen/Core>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
@@ -24,6 +25,20 @@ inline std::string format_number(double v) {
   char buf[40];
   std::snprintf(buf, sizeof buf, "%.17g", v);
   return buf;
+}
+
+/// Row `row` of a row-major matrix as "[a, b, …]" with 10 significant digits (human summaries).
+inline std::string row_text(
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>&
+        m,
+    Eigen::Index row) {
+  std::string s = "[";
+  for (Eigen::Index j = 0; j < m.cols(); ++j) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%s%.10g", j ? ", " : "", m(row, j));
+    s += buf;
+  }
+  return s + "]";
 }
 
 /// Each command registers itself on the app and returns the function that runs it.

@@ -20,20 +20,6 @@
 
 namespace fracvi::cli {
 
-namespace {
-
-std::string vector_text(const RowMatrixXd& m, Eigen::Index row) {
-  std::string s = "[";
-  for (Eigen::Index j = 0; j < m.cols(); ++j) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%s%.10g", j ? ", " : "", m(row, j));
-    s += buf;
-  }
-  return s + "]";
-}
-
-}  // namespace
-
 Command add_run_command(CLI::App& parent) {
   struct Options {
     std::string file;
@@ -98,8 +84,8 @@ Command add_run_command(CLI::App& parent) {
                   spec.steps, spec.step(), spec.start, spec.end);
       if (solution.t.size() > 0) {
         std::printf("  final time        %.10g\n", solution.t[last]);
-        std::printf("  final position    %s\n", vector_text(solution.x, last).c_str());
-        std::printf("  final velocity    %s\n", vector_text(solution.v, last).c_str());
+        std::printf("  final position    %s\n", row_text(solution.x, last).c_str());
+        std::printf("  final velocity    %s\n", row_text(solution.v, last).c_str());
         std::printf("  energy            E_0 = %.10g  ->  E_N = %.10g,  dissipated W_N = %.10g\n",
                     solution.energy[0], solution.energy[last], solution.dissipated[last]);
       }
