@@ -162,22 +162,7 @@ class Mechanical : public ::testing::TestWithParam<double> {};
 
 TEST_P(Mechanical, IntegratorTrajectorySolvesTheExtendedEquations) {
   const double alpha = GetParam();
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd{{1.5, 0.3}, {0.3, 1.0}};
-  p.model.damping = Eigen::MatrixXd{{0.6, -0.2}, {-0.2, 0.4}};
-  p.model.alpha = alpha;
-  p.model.convention = Convention::kRiemannLiouville;
-  p.model.potential = std::make_shared<const ExpressionPotential>(
-      2, "9.81*(1 - cos(x1)) + 4*(1 - cos(x2)) + (x2 - x1)^2 + 0.1*t*x1^2");
-  p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
-    f(0) = 0.3 * std::sin(2.0 * t);
-    f(1) = 0.1 * t;
-  };
-  p.x0 = Eigen::Vector2d(0.4, -0.3);
-  p.v0 = Eigen::Vector2d(0.5, 0.8);
-  p.t0 = 0.5;
-  p.t_end = 2.5;
-  p.steps = 200;
+  const InitialValueProblem p = test::mechanical_ivp(alpha, 2.5, 200);
   IntegratorOptions o;
   o.newton.relative_tolerance = 1e-15;
   o.mirror = false;

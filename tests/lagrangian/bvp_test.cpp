@@ -117,23 +117,7 @@ TEST(SolveBvp, NonMechanicalCoupledLagrangianDenseAndKrylov) {
 }
 
 InitialValueProblem mechanical_ivp(double alpha) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd{{1.5, 0.3}, {0.3, 1.0}};
-  p.model.damping = Eigen::MatrixXd{{0.6, -0.2}, {-0.2, 0.4}};
-  p.model.alpha = alpha;
-  p.model.convention = Convention::kRiemannLiouville;
-  p.model.potential = std::make_shared<const ExpressionPotential>(
-      2, "9.81*(1 - cos(x1)) + 4*(1 - cos(x2)) + (x2 - x1)^2 + 0.1*t*x1^2");
-  p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
-    f(0) = 0.3 * std::sin(2.0 * t);
-    f(1) = 0.1 * t;
-  };
-  p.x0 = Eigen::Vector2d(0.4, -0.3);
-  p.v0 = Eigen::Vector2d(0.5, 0.8);
-  p.t0 = 0.5;
-  p.t_end = 1.5;
-  p.steps = 100;
-  return p;
+  return test::mechanical_ivp(alpha, 1.5, 100);
 }
 
 class MechanicalBvp : public ::testing::TestWithParam<double> {};

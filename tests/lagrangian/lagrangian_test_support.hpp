@@ -7,7 +7,9 @@
 #include <random>
 #include <string>
 
+#include "fracvi/integrate/integrator.hpp"
 #include "fracvi/lagrangian/lagrangian.hpp"
+#include "fracvi/model/expression_potential.hpp"
 
 namespace fracvi::test {
 
@@ -47,6 +49,29 @@ inline Eigen::VectorXd random_vector(std::mt19937_64& rng, Eigen::Index n, doubl
   Eigen::VectorXd v(n);
   for (Eigen::Index i = 0; i < n; ++i) v(i) = scale * u(rng);
   return v;
+}
+
+/// Two coupled pendula with full M, R, a time-dependent potential and forcing, Riemann–Liouville,
+/// on [0.5, t_end]: the mechanical IVP whose trajectory the discrete EL tests and the BVP tests
+/// compare against.
+inline InitialValueProblem mechanical_ivp(double alpha, double t_end, std::size_t steps) {
+  InitialValueProblem p;
+  p.model.mass = Eigen::MatrixXd{{1.5, 0.3}, {0.3, 1.0}};
+  p.model.damping = Eigen::MatrixXd{{0.6, -0.2}, {-0.2, 0.4}};
+  p.model.alpha = alpha;
+  p.model.convention = Convention::kRiemannLiouville;
+  p.model.potential = std::make_shared<const ExpressionPotential>(
+      2, "9.81*(1 - cos(x1)) + 4*(1 - cos(x2)) + (x2 - x1)^2 + 0.1*t*x1^2");
+  p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
+    f(0) = 0.3 * std::sin(2.0 * t);
+    f(1) = 0.1 * t;
+  };
+  p.x0 = Eigen::Vector2d(0.4, -0.3);
+  p.v0 = Eigen::Vector2d(0.5, 0.8);
+  p.t0 = 0.5;
+  p.t_end = t_end;
+  p.steps = steps;
+  return p;
 }
 
 }  // namespace fracvi::test
