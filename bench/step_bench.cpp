@@ -66,12 +66,13 @@ constexpr double kH = 1e-3;
 
 fracvi::InitialValueProblem chain_problem(Eigen::Index d, double alpha, std::size_t steps) {
   fracvi::InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd::Identity(d, d);
+  Eigen::MatrixXd mass = Eigen::MatrixXd::Identity(d, d);
   if (d > 1) {
-    p.model.mass.diagonal(1).setConstant(0.2);
-    p.model.mass.diagonal(-1).setConstant(0.2);
+    mass.diagonal(1).setConstant(0.2);
+    mass.diagonal(-1).setConstant(0.2);
   }
-  p.model.damping = 0.1 * p.model.mass;
+  p.model.mass = mass;
+  p.model.damping = 0.1 * mass;
   p.model.alpha = alpha;
   p.model.potential = std::make_shared<const PendulumChain>(d, 9.81, 3.0);
   p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
@@ -122,7 +123,7 @@ void BM_MidpointStep(benchmark::State& state) {
   const auto d = static_cast<Eigen::Index>(state.range(0));
   const std::size_t n = d == 1 ? 200000 : 2000;
   const fracvi::InitialValueProblem p = chain_problem(d, 0.5, n);
-  const Eigen::MatrixXd A = p.model.mass + 0.5 * kH * p.model.damping;
+  const fracvi::ModelMatrix A = linear_combination(p.model.mass, 0.5 * kH, p.model.damping);
   fracvi::internal::MidpointNewton newton(A, kH, p.model.potential.get(), fracvi::NewtonOptions{});
   fracvi::RowMatrixXd xs(static_cast<Eigen::Index>(n + 1), d),
       vs(static_cast<Eigen::Index>(n + 1), d);
@@ -140,7 +141,7 @@ void BM_MidpointStep(benchmark::State& state) {
     const Eigen::Map<const Eigen::VectorXd> v(vs.row(static_cast<Eigen::Index>(k)).data(), d);
     const double t_half = p.t0 + (static_cast<double>(k) + 0.5) * kH;
     p.model.forcing(t_half, f);
-    c.noalias() = p.model.mass * v;
+    p.model.mass.multiply(v, c);
     c *= kH;
     const auto report = newton.solve(x, t_half, c, &f, delta);
     iterations += static_cast<std::size_t>(report.iterations);
@@ -159,7 +160,8 @@ void BM_VerletStep(benchmark::State& state) {
   const auto d = static_cast<Eigen::Index>(state.range(0));
   const std::size_t n = d == 1 ? 200000 : 2000;
   const fracvi::InitialValueProblem p = chain_problem(d, 0.5, n);
-  const Eigen::LLT<Eigen::MatrixXd> llt(p.model.mass);
+  const Eigen::LLT<Eigen::MatrixXd> llt(p.model.mass.dense());
+  const Eigen::MatrixXd& damping = p.model.damping.dense();
   fracvi::RowMatrixXd xs(static_cast<Eigen::Index>(n + 1), d),
       vs(static_cast<Eigen::Index>(n + 1), d);
   Eigen::VectorXd g(d), f(d), force(d), acc(d), v_half(d);
@@ -171,7 +173,7 @@ void BM_VerletStep(benchmark::State& state) {
     p.model.potential->gradient(x, t, g);
     p.model.forcing(t, f);
     force = f - g;
-    force.noalias() -= p.model.damping * v;
+    force.noalias() -= damping * v;
     acc = llt.solve(force);
   };
   acceleration(p.x0, p.v0, p.t0);

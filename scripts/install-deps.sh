@@ -7,6 +7,7 @@ set -euo pipefail
 packages=(
   cmake g++ make ninja-build pkg-config   # build
   libeigen3-dev                           # linear algebra, AutoDiff module
+  liblapacke-dev                          # banded Cholesky/LU (dpbtrf, dgbtrf) for chains
   libboost-dev                            # Boost.Math (special functions, tanh_sinh), Boost.Odeint
   libtomlplusplus-dev                     # problem files (TOML)
   libcli11-dev                            # command line

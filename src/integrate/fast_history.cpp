@@ -1,11 +1,14 @@
 #include "fracvi/integrate/fast_history.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cassert>
 #include <cmath>
 #include <stdexcept>
 #include <string>
 #include <utility>
+
+#include "fracvi/internal/parallel.hpp"
 
 namespace fracvi {
 
@@ -78,11 +81,16 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
     // x̃_{k−n0} leaves the window (it sits in the slot x̃_k is about to take) and enters every
     // recursion: Y_j ← e^{−λ_j} Y_j + x̃_{k−n0}; then the cached tail Σ_j w_j Y_j.
     const auto leaving = ring_.col(slot);
-    for (Eigen::Index i = 0; i < ring_.rows(); ++i) {
-      auto y = state_.col(i);
-      y = decay_ * y + leaving(i);
-      tail_(i) = y.matrix().dot(weights_);
-    }
+    auto recurse = [&](Eigen::Index lo, Eigen::Index hi) {
+      for (Eigen::Index i = lo; i < hi; ++i) {
+        auto y = state_.col(i);
+        y = decay_ * y + leaving(i);
+        tail_(i) = y.matrix().dot(weights_);
+      }
+    };
+    const Eigen::Index d = ring_.rows();
+    internal::for_blocks(d, internal::team_size(threads_, d * state_.rows(), kParallelWork),
+                         recurse);
   }
   ring_.col(slot) = x_tilde;
   ring_.col(slot + window_) = x_tilde;
@@ -94,8 +102,14 @@ void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
   // The last n0 values x̃_{k−n0+1} … x̃_k are columns r … r + n0 − 1 with r = (k + 1) mod n0;
   // before k = n0 − 1 the missing ones are the zeros the ring was cleared to.
   const auto first = static_cast<Eigen::Index>(size_ % static_cast<std::size_t>(window_));
-  out.noalias() = ring_.middleCols(first, window_) * head_reversed_;
-  out += tail_;
+  const Eigen::Index d = ring_.rows();
+  // Split by degree of freedom: each block of rows is its own matrix–vector product.
+  internal::for_blocks(d, internal::team_size(threads_, d * window_, kParallelWork),
+                       [&](Eigen::Index lo, Eigen::Index hi) {
+                         out.segment(lo, hi - lo).noalias() =
+                             ring_.block(lo, first, hi - lo, window_) * head_reversed_;
+                         out.segment(lo, hi - lo) += tail_.segment(lo, hi - lo);
+                       });
 }
 
 void FastHistory::clear() {

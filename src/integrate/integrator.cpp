@@ -55,6 +55,16 @@ void validate(const IntegratorOptions& options) {
         " must be in [1e-13, 1e-3] (per-weight relative accuracy of the fast "
         "history)");
   }
+  if (options.save_every < 1) {
+    throw ValidationError("options.save_every = 0 must be >= 1 (store every n-th step)");
+  }
+  if (options.threads < 0) {
+    throw ValidationError("options.threads = " + std::to_string(options.threads) +
+                          " must be >= 0 (0 = all cores)");
+  }
+  if (!parse_linear_solver(to_string(options.linear_solver))) {
+    throw ValidationError("options.linear_solver has an unknown value");
+  }
   if (options.start != StartValue::kDiscreteLegendre &&
       options.start != StartValue::kExplicitEuler) {
     throw ValidationError("options.start has an unknown value");
@@ -73,8 +83,69 @@ const InitialValueProblem& validated(const InitialValueProblem& problem, const M
   return problem;
 }
 
-Eigen::MatrixXd symmetric_part(const Eigen::MatrixXd& m) {
-  return 0.5 * (m + m.transpose());
+// v = M⁻¹p and w = M⁻¹(R s): a dense M keeps its explicit inverse and M⁻¹R (one matrix–vector
+// product each, as before the structured path existed); a sparse M is factored once, banded or
+// sparse like the Newton matrix, and w costs one product with R and one solve.
+class MassSolver {
+ public:
+  MassSolver(const ModelMatrix& mass, const ModelMatrix& damping, LinearSolver solver)
+      : dense_(!mass.is_sparse() || solver == LinearSolver::kDense) {
+    const Eigen::Index d = mass.rows();
+    if (dense_) {
+      const Eigen::MatrixXd m = mass.to_dense();
+      const Eigen::LLT<Eigen::MatrixXd> llt(m);
+      minv_damping_ = llt.solve(damping.to_dense());
+      inverse_ = llt.solve(Eigen::MatrixXd::Identity(d, d));
+      inverse_ = (0.5 * (inverse_ + inverse_.transpose())).eval();
+      return;
+    }
+    auto pattern = std::make_shared<internal::SymmetricPattern>(d);
+    pattern->add(mass);
+    pattern->finalize();
+    LinearSolver backend =
+        solver == LinearSolver::kAuto ? internal::choose_factorization(*pattern) : solver;
+    if (backend == LinearSolver::kDense) backend = LinearSolver::kSparse;  // M is stored sparse
+    factor_ = std::make_unique<internal::SymmetricFactor>(pattern, backend);
+    std::span<double> values = factor_->values();
+    for (const auto& [at, value] : internal::scatter_upper(*pattern, mass)) values[at] += value;
+    if (!factor_->factor()) {
+      throw ValidationError("model.mass could not be factored (not positive definite)");
+    }
+    damping_ = damping;
+    scratch_.resize(d);
+  }
+
+  // out = M⁻¹ p
+  void inverse(const Eigen::Ref<const Eigen::VectorXd>& p, Eigen::Ref<Eigen::VectorXd> out) const {
+    if (dense_) {
+      out.noalias() = inverse_ * p;
+    } else {
+      out = p;
+      factor_->solve_in_place(out);
+    }
+  }
+  // out = M⁻¹ R s
+  void inverse_damping(const Eigen::Ref<const Eigen::VectorXd>& s,
+                       Eigen::Ref<Eigen::VectorXd> out) {
+    if (dense_) {
+      out.noalias() = minv_damping_ * s;
+    } else {
+      damping_.multiply(s, scratch_);
+      inverse(scratch_, out);
+    }
+  }
+
+ private:
+  bool dense_;
+  Eigen::MatrixXd inverse_, minv_damping_;
+  std::unique_ptr<internal::SymmetricFactor> factor_;
+  ModelMatrix damping_;
+  Eigen::VectorXd scratch_;
+};
+
+// Stored rows for N steps every s steps: 0, s, 2s, …, and N.
+std::size_t stored_rows(std::size_t n_steps, std::size_t every) {
+  return n_steps / every + 1 + (n_steps % every != 0 ? 1 : 0);
 }
 
 }  // namespace
@@ -103,23 +174,25 @@ struct Integrator::Impl {
   bool u_time_dependent;
   double damping_scale;  // h^{−2α}
 
-  Eigen::MatrixXd mass, damping, minv_damping;  // symmetrised M, R; M⁻¹R
-  Eigen::MatrixXd mass_inverse;  // M⁻¹ (from Cholesky): v = M⁻¹p is one matrix–vector product
-  Eigen::LLT<Eigen::MatrixXd> mass_llt;
+  ModelMatrix mass, damping;  // symmetrised M, R (dense or sparse, as given)
+  MassSolver mass_solver;
   std::unique_ptr<History> history;
   internal::MidpointNewton newton;
 
   Solution sol;
   std::size_t k = 0;
+  std::size_t saved = 0;  // rows of sol filled
   Status status = Status::kRunning;
 
-  // Workspace (sized once).
+  // Workspace (sized once). x_k, v_k live here; stored rows are copies.
+  Eigen::VectorXd x_cur, x_next, v_cur, v_next, x_first;
   Eigen::VectorXd p, p_plus, p_minus, force, force_next, w, w_next, sum, x_tilde, f_mid, rhs, mid,
       grad, dx;
   double fv = 0.0;  // F_k · v_k
   double fw = 0.0;  // F_k · M⁻¹F_k
   double e0 = 0.0;
   double work = 0.0;
+  double energy_k = 0.0, work_k = 0.0, balance_k = 0.0;  // at step k
 
   std::array<char, 400> message{};
   std::chrono::steady_clock::time_point clock_start;
@@ -146,18 +219,18 @@ struct Integrator::Impl {
         has_forcing(static_cast<bool>(problem.model.forcing)),
         u_time_dependent(problem.model.potential && problem.model.potential->is_time_dependent()),
         damping_scale(std::pow(h, -order)),
-        mass(symmetric_part(problem.model.mass)),
-        damping(symmetric_part(problem.model.damping)),
-        mass_llt(mass),
-        newton(mass, h, problem.model.potential.get(), options.newton, problem.t0) {
-    minv_damping = mass_llt.solve(damping);
-    mass_inverse = mass_llt.solve(Eigen::MatrixXd::Identity(d, d));
-    mass_inverse = symmetric_part(mass_inverse);
-    if (use_history)
+        mass(problem.model.mass.symmetric_part()),
+        damping(problem.model.damping.symmetric_part()),
+        mass_solver(mass, damping, options.linear_solver),
+        newton(mass, h, problem.model.potential.get(), options.newton, problem.t0,
+               options.linear_solver) {
+    if (use_history) {
       history = make_history(options.history, order, d, n_steps + 1, options.history_tolerance);
-
-    const auto rows = static_cast<Eigen::Index>(n_steps + 1);
+      history->set_threads(options.threads);
+    }
+    const auto rows = static_cast<Eigen::Index>(stored_rows(n_steps, options.save_every));
     sol.t = Eigen::VectorXd::Constant(rows, kNaN);
+    sol.step.assign(static_cast<std::size_t>(rows), 0);
     sol.x = RowMatrixXd::Constant(rows, d, kNaN);
     sol.v = RowMatrixXd::Constant(rows, d, kNaN);
     sol.energy = Eigen::VectorXd::Constant(rows, kNaN);
@@ -165,8 +238,11 @@ struct Integrator::Impl {
     sol.balance = Eigen::VectorXd::Constant(rows, kNaN);
     sol.method = std::string(method.name());
     sol.declared_order = method.declared_order(problem.model);
-    for (Eigen::VectorXd* vec : {&p, &p_plus, &p_minus, &force, &force_next, &w, &w_next, &sum,
-                                 &x_tilde, &f_mid, &rhs, &mid, &grad, &dx}) {
+    sol.save_every = options.save_every;
+    sol.linear_solver = std::string(to_string(newton.linear_solver()));
+    for (Eigen::VectorXd* vec :
+         {&x_cur, &x_next, &v_cur, &v_next, &x_first, &p, &p_plus, &p_minus, &force, &force_next,
+          &w, &w_next, &sum, &x_tilde, &f_mid, &rhs, &mid, &grad, &dx}) {
       vec->setZero(d);
     }
     initial_state();
@@ -184,6 +260,22 @@ struct Integrator::Impl {
     return problem.model.potential ? problem.model.potential->value(x, t) : 0.0;
   }
 
+  // Copies the state at step k into the next stored row (steps 0, s, 2s, … and the last one).
+  void store() {
+    const auto i = static_cast<Eigen::Index>(saved);
+    sol.t(i) = time(k);
+    sol.step[saved] = k;
+    row(sol.x, saved) = x_cur;
+    row(sol.v, saved) = v_cur;
+    sol.energy(i) = energy_k;
+    sol.dissipated(i) = work_k;
+    sol.balance(i) = balance_k;
+    ++saved;
+  }
+  [[nodiscard]] bool stored(std::size_t step) const {
+    return saved > 0 && sol.step[saved - 1] == step;
+  }
+
   // x̃_i for the Caputo convention (start_step.md §3); x itself for Riemann–Liouville and 2α = 1.
   void tilde(const Eigen::Ref<const Eigen::VectorXd>& x, std::size_t i, Eigen::VectorXd& out) {
     out = x;
@@ -194,17 +286,16 @@ struct Integrator::Impl {
   // F = R h^{−2α} s and w = M⁻¹F for the history sum s of the latest pushed index.
   void damping_force(Eigen::VectorXd& f_out, Eigen::VectorXd& w_out) {
     history->sum(sum);
-    f_out.noalias() = damping * sum;
+    damping.multiply(sum, f_out);
     f_out *= damping_scale;
-    w_out.noalias() = minv_damping * sum;
+    mass_solver.inverse_damping(sum, w_out);
     w_out *= damping_scale;
   }
 
   void initial_state() {
-    row(sol.x, 0) = problem.x0;
-    row(sol.v, 0) = problem.v0;
-    sol.t(0) = problem.t0;
-    p.noalias() = mass * problem.v0;
+    x_cur = problem.x0;
+    v_cur = problem.v0;
+    mass.multiply(problem.v0, p);
     if (damped) {
       if (use_history) {
         tilde(problem.x0, 0, x_tilde);
@@ -212,8 +303,8 @@ struct Integrator::Impl {
       }
       if (viscous) {
         // Lemma 5.3's backward difference needs x_{−1}; the consistent force at t_0 is R v_0.
-        force.noalias() = damping * problem.v0;
-        w.noalias() = minv_damping * problem.v0;
+        damping.multiply(problem.v0, force);
+        mass_solver.inverse_damping(problem.v0, w);
       } else {
         damping_force(force, w);
       }
@@ -223,17 +314,21 @@ struct Integrator::Impl {
       fw = force.dot(w);
       e0 = 0.5 * problem.v0.dot(p) + potential_value(problem.x0, problem.t0);
       work = 0.0;
-      sol.energy(0) = e0;
-      sol.dissipated(0) = 0.0;
-      sol.balance(0) = 0.0;
+      energy_k = e0;
+      work_k = 0.0;
+      balance_k = 0.0;
     } else {
+      energy_k = work_k = balance_k = kNaN;
       sol.max_balance_error = kNaN;
     }
+    store();
   }
 
   Status fail(Status s, const char* what, const char* detail = nullptr) noexcept {
     status = s;
     stop_clock();
+    // The last completed step is part of the trajectory so far even between stored rows.
+    if (!stored(k)) store();
     std::snprintf(message.data(), message.size(),
                   "%s at step %zu (computing x_%zu at t = %.17g)%s%s", what, k + 1, k + 1,
                   time(k + 1), detail != nullptr ? ": " : "", detail != nullptr ? detail : "");
@@ -266,7 +361,7 @@ struct Integrator::Impl {
       clock_start = std::chrono::steady_clock::now();
       clock_running = true;
     }
-    const Eigen::Map<Eigen::VectorXd> xk = row(sol.x, k);
+    const Eigen::VectorXd& xk = x_cur;
     const double tk = time(k), t_half = half_time(k), t_next = time(k + 1);
     const Eigen::VectorXd* f_ptr = nullptr;
     if (has_forcing) {
@@ -279,7 +374,7 @@ struct Integrator::Impl {
       dx = h * problem.v0;
       mid = xk + 0.5 * dx;
       newton.effective_gradient(mid, t_half, f_ptr, grad);
-      p_minus.noalias() = mass * dx;
+      mass.multiply(dx, p_minus);
       p_minus *= 1.0 / h;
       p_minus -= (0.5 * h) * grad;
     } else {
@@ -295,6 +390,10 @@ struct Integrator::Impl {
       if (report.status == Status::kNonFinite) {
         return fail(Status::kNonFinite, "non-finite Newton residual or iterate");
       }
+      if (report.singular) {
+        return fail(Status::kNewtonFailure,
+                    "the Newton matrix M + (h^2/4) Hess U could not be factored (singular)");
+      }
       if (report.status == Status::kNewtonFailure) {
         char what[200];
         std::snprintf(what, sizeof what,
@@ -304,21 +403,14 @@ struct Integrator::Impl {
         return fail(Status::kNewtonFailure, what);
       }
       // p⁻_{k+1} = 2MΔ_k/h − p⁺_k (the two one-sided momenta average to M Δ_k/h).
-      p_minus.noalias() = mass * dx;
+      mass.multiply(dx, p_minus);
       p_minus *= 2.0 / h;
       p_minus -= p_plus;
     }
-    // Written straight into the solution rows; a failure below resets them to NaN.
-    Eigen::Map<Eigen::VectorXd> x_new = row(sol.x, k + 1), v_new = row(sol.v, k + 1);
-    auto discard = [&] {
-      x_new.setConstant(kNaN);
-      v_new.setConstant(kNaN);
-    };
+    Eigen::VectorXd& x_new = x_next;
+    Eigen::VectorXd& v_new = v_next;
     x_new = xk + dx;
-    if (!x_new.allFinite()) {
-      discard();
-      return fail(Status::kNonFinite, "non-finite position");
-    }
+    if (!x_new.allFinite()) return fail(Status::kNonFinite, "non-finite position");
 
     // Damping force at the new point, grid momentum p_{k+1} = p⁻_{k+1} − (h/2)F_{k+1}, velocity.
     if (damped && !use_history) {
@@ -331,17 +423,17 @@ struct Integrator::Impl {
       history->sum(sum);
     }
     if (damped) {
-      force_next.noalias() = damping * sum;
+      damping.multiply(sum, force_next);
       force_next *= damping_scale;
     }
     p = p_minus - (0.5 * h) * force_next;
-    v_new.noalias() = mass_inverse * p;
+    mass_solver.inverse(p, v_new);
 
     // Energy bookkeeping (solution.hpp; start_step.md §4).
     double energy = kNaN, balance = kNaN, fv_next = 0.0, fw_next = 0.0;
     if (options.diagnostics) {
       if (damped) {  // M⁻¹F_{k+1}, for the (h²/8) FᵀM⁻¹F end terms of W
-        w_next.noalias() = minv_damping * sum;
+        mass_solver.inverse_damping(sum, w_next);
         w_next *= damping_scale;
       }
       energy = 0.5 * v_new.dot(p) + potential_value(x_new, t_next);
@@ -357,24 +449,23 @@ struct Integrator::Impl {
       }
       balance = energy + work - e0;
       if (!std::isfinite(energy) || !std::isfinite(work)) {
-        discard();
         return fail(Status::kNonFinite, "non-finite energy or dissipated work");
       }
     }
-    if (!v_new.allFinite()) {
-      discard();
-      return fail(Status::kNonFinite, "non-finite velocity");
-    }
+    if (!v_new.allFinite()) return fail(Status::kNonFinite, "non-finite velocity");
 
+    if (k == 0) x_first = x_new;  // the mirror run starts from x_0, x_1
     ++k;
-    sol.t(static_cast<Eigen::Index>(k)) = t_next;
-    sol.energy(static_cast<Eigen::Index>(k)) = energy;
-    sol.dissipated(static_cast<Eigen::Index>(k)) = work;
-    sol.balance(static_cast<Eigen::Index>(k)) = balance;
+    x_cur.swap(x_next);
+    v_cur.swap(v_next);
+    energy_k = energy;
+    work_k = work;
+    balance_k = balance;
     if (options.diagnostics) {
       sol.max_balance_error = std::max(sol.max_balance_error, std::abs(balance));
     }
     sol.steps_done = k;
+    if (k % options.save_every == 0 || k == n_steps) store();
     force.swap(force_next);
     w.swap(w_next);
     fv = fv_next;
@@ -390,7 +481,7 @@ struct Integrator::Impl {
   // k = N−1 … 1, in its literal second-difference form (not the momentum form of the x-run), with
   // its own forward-running history: M(y_{k+1} − 2y_k + y_{k−1})/h² + R h^{−2α} Σ_{m=0}^{N−k} c_m
   // ỹ_{k+m} + ½∇U_f(ȳ_k) + ½∇U_f(ȳ_{k−1}) = 0. U and f are evaluated at the mirrored times
-  // (y_j ≈ x(a + b − t_j)). Returns max_k ‖y_k − x_{N−k}‖_∞.
+  // (y_j ≈ x(a + b − t_j)). Returns max ‖y_k − x_{N−k}‖_∞ over the stored rows x_{N−k}.
   [[nodiscard]] double mirror() const {
     try {
       return mirror_unguarded();
@@ -404,14 +495,14 @@ struct Integrator::Impl {
     const std::size_t n = n_steps;
     if (n < 2) return 0.0;
     internal::MidpointNewton solver(mass, h, problem.model.potential.get(), options.newton,
-                                    problem.t0);
+                                    problem.t0, options.linear_solver);
     std::unique_ptr<History> hist;
-    if (damped) hist = make_history(options.history, order, d, n + 1, options.history_tolerance);
-    auto x_row = [&](std::size_t i) {
-      return Eigen::Map<const Eigen::VectorXd>(sol.x.row(static_cast<Eigen::Index>(i)).data(), d);
-    };
+    if (damped) {
+      hist = make_history(options.history, order, d, n + 1, options.history_tolerance);
+      hist->set_threads(options.threads);
+    }
     // ỹ_j = y_j − y_N − [2α > 1](t_N − t_j) v_0: the Caputo shift of the reversed clock.
-    Eigen::VectorXd y_next = x_row(0), y_k = x_row(1), y_prev(d), shifted(d), s(d), fy(d), g(d),
+    Eigen::VectorXd y_next = problem.x0, y_k = x_first, y_prev(d), shifted(d), s(d), fy(d), g(d),
                     f_tau(d), f_tau2(d), c(d), ym(d), step(d);
     // Δ = y_{k−1} − y_k; the equation is M(Δ_k − Δ_{k+1}) + h²F_k + (h²/2)(∇U_f(ȳ_k) +
     // ∇U_f(ȳ_{k−1})) = 0 (the second difference written with increments, which keeps round-off
@@ -427,12 +518,14 @@ struct Integrator::Impl {
       push(y_next, n);
       push(y_k, n - 1);
     }
+    // Stored rows in step order; y_{k−1} is compared with x_{N−k+1} when that step is stored.
+    std::size_t next_row = 0;
     double err = 0.0;
     for (std::size_t kk = n - 1; kk >= 1; --kk) {
       fy.setZero();
       if (damped) {
         hist->sum(s);
-        fy.noalias() = damping * s;
+        damping.multiply(s, fy);
         fy *= damping_scale;
       }
       // ȳ_k = (y_{k+1} + y_k)/2 mirrors x̄ at t_{N−k−½}; ȳ_{k−1} mirrors x̄ at t_{N−k+½}.
@@ -447,7 +540,7 @@ struct Integrator::Impl {
       }
       ym = 0.5 * (y_next + y_k);
       solver.effective_gradient(ym, tau_known, f_known, g);
-      c.noalias() = mass * delta;
+      mass.multiply(delta, c);
       c -= (h * h) * fy;
       c -= (0.5 * h * h) * g;
       step = delta;  // predictor
@@ -455,7 +548,13 @@ struct Integrator::Impl {
       if (report.status != Status::kSuccess) return kNaN;
       delta = step;
       y_prev = y_k + delta;
-      err = std::max(err, (y_prev - x_row(n - kk + 1)).cwiseAbs().maxCoeff());
+      const std::size_t mirrored = n - kk + 1;  // y_{kk−1} ≈ x_{mirrored}
+      while (next_row < saved && sol.step[next_row] < mirrored) ++next_row;
+      if (next_row < saved && sol.step[next_row] == mirrored) {
+        const Eigen::Map<const Eigen::VectorXd> x_row(
+            sol.x.row(static_cast<Eigen::Index>(next_row)).data(), d);
+        err = std::max(err, (y_prev - x_row).cwiseAbs().maxCoeff());
+      }
       if (damped) push(y_prev, kk - 1);
       y_next.swap(y_k);
       y_k.swap(y_prev);
@@ -484,25 +583,23 @@ std::size_t Integrator::steps_total() const {
   return impl_->n_steps;
 }
 double Integrator::time() const {
-  return impl_->sol.t(static_cast<Eigen::Index>(impl_->k));
+  return impl_->time(impl_->k);
 }
 
 Eigen::Map<const Eigen::VectorXd> Integrator::position() const {
-  return {impl_->sol.x.row(static_cast<Eigen::Index>(impl_->k)).data(), impl_->d};
+  return {impl_->x_cur.data(), impl_->d};
 }
 Eigen::Map<const Eigen::VectorXd> Integrator::velocity() const {
-  return {impl_->sol.v.row(static_cast<Eigen::Index>(impl_->k)).data(), impl_->d};
+  return {impl_->v_cur.data(), impl_->d};
 }
 
 StepView Integrator::view() const {
-  const auto i = static_cast<Eigen::Index>(impl_->k);
-  return StepView{impl_->k,
-                  impl_->sol.t(i),
-                  position(),
-                  velocity(),
-                  impl_->sol.energy(i),
-                  impl_->sol.dissipated(i),
-                  impl_->sol.balance(i)};
+  return StepView{impl_->k,        time(),        position(),      velocity(),
+                  impl_->energy_k, impl_->work_k, impl_->balance_k};
+}
+
+LinearSolver Integrator::linear_solver() const {
+  return impl_->newton.linear_solver();
 }
 
 const InitialValueProblem& Integrator::problem() const {
@@ -531,6 +628,7 @@ Solution Integrator::take_solution() {
     im.sol.mirror_error = im.mirror();
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
+  if (!im.stored(im.k)) im.store();  // stopped by the caller between stored rows
   Solution s = std::move(im.sol);
   s.status = im.status;
   s.steps_done = im.k;
@@ -541,7 +639,8 @@ Solution Integrator::take_solution() {
     s.message = "stopped by the caller after " + std::to_string(im.k) + " of " +
                 std::to_string(im.n_steps) + " steps";
   }
-  const auto rows = static_cast<Eigen::Index>(im.k + 1);
+  const auto rows = static_cast<Eigen::Index>(im.saved);
+  s.step.resize(im.saved);
   s.t.conservativeResize(rows);
   s.x.conservativeResize(rows, Eigen::NoChange);
   s.v.conservativeResize(rows, Eigen::NoChange);

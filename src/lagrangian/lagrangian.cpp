@@ -120,8 +120,8 @@ void ExpressionLagrangian::derivatives(double t, const Eigen::Ref<const Eigen::V
 // MechanicalLagrangian
 
 MechanicalLagrangian::MechanicalLagrangian(const MechanicalModel& model, double a, double b)
-    : mass_(model.mass),
-      damping_(model.damping),
+    : mass_(model.mass.to_dense()),
+      damping_(model.damping.to_dense()),
       potential_(model.potential),
       forcing_(model.forcing),
       a_plus_b_(a + b) {

@@ -179,8 +179,7 @@ MechanicalForm mechanical_form(const std::shared_ptr<const ExpressionLagrangian>
   MechanicalModel m;
   m.alpha = alpha;
   m.convention = Convention::kRiemannLiouville;
-  m.mass.resize(d, d);
-  m.damping.resize(d, d);
+  Eigen::MatrixXd mass(d, d), damping(d, d);
   std::string bad;
   for (Eigen::Index i = 0; i < d; ++i) {
     const Expression pxi = e.derivative(index(2, i));    // ∂L/∂ẋ_i
@@ -213,10 +212,12 @@ MechanicalForm mechanical_form(const std::shared_ptr<const ExpressionLagrangian>
                      " or of " + names[index(4, j)] + "*" + names[index(5, i)] + " is not constant";
         return out;
       }
-      m.mass(i, j) = mij(zeros);
-      m.damping(j, i) = -rij(zeros);
+      mass(i, j) = mij(zeros);
+      damping(j, i) = -rij(zeros);
     }
   }
+  m.mass = mass;
+  m.damping = damping;
   m.potential = std::make_shared<const LagrangianPotential>(lagrangian);
   out.model = std::move(m);
   return out;
@@ -249,7 +250,7 @@ InitialValueProblem make_lagrangian_initial_value_problem(const ProblemSpec& spe
   z.segment(2 * spec.dim, spec.dim) = spec.velocity;
   check_velocity_hessian(*lagrangian, spec.start, z,
                          "the initial data (t = " + fmt(spec.start) + ")", /*include_y=*/false);
-  const Eigen::MatrixXd& r = p.model.damping;
+  const Eigen::MatrixXd r = p.model.damping.to_dense();
   if ((r - r.transpose()).cwiseAbs().maxCoeff() > 1e-12 * std::max(1.0, r.cwiseAbs().maxCoeff())) {
     throw ValidationError(
         "model.lagrangian: the memory coupling -dx^T R dy has a non-symmetric R (the coefficient "

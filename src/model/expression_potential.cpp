@@ -75,6 +75,21 @@ void ExpressionPotential::hessian(const Eigen::Ref<const Eigen::VectorXd>& x, do
   derivatives_.evaluate_dense(s.args, s.gradient, H, s.workspace);
 }
 
+std::vector<Potential::HessianEntry> ExpressionPotential::hessian_pattern() const {
+  std::vector<HessianEntry> pattern;
+  pattern.reserve(derivatives_.hessian_pattern().size());
+  for (const auto& e : derivatives_.hessian_pattern()) {
+    pattern.push_back({static_cast<Eigen::Index>(e.row), static_cast<Eigen::Index>(e.col)});
+  }
+  return pattern;
+}
+
+void ExpressionPotential::hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+                                         std::span<double> values) const {
+  Scratch& s = scratch(x, t);
+  derivatives_.evaluate(s.args, s.gradient, values, s.workspace);
+}
+
 Forcing make_expression_forcing(const std::vector<std::string>& force) {
   if (force.empty()) return {};
   auto components =

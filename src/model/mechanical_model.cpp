@@ -1,6 +1,8 @@
 #include "fracvi/model/mechanical_model.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -24,7 +26,7 @@ std::string_view to_string(Convention convention) {
 }
 
 bool MechanicalModel::is_undamped() const {
-  return damping.size() == 0 || (damping.array() == 0.0).all();
+  return damping.rows() == 0 || damping.is_zero();
 }
 
 namespace {
@@ -36,7 +38,8 @@ std::string fmt(double value) {
   return {buf.data(), result.ptr};
 }
 
-std::string shape(const Eigen::MatrixXd& m) {
+template <class Matrix>
+std::string shape(const Matrix& m) {
   return std::to_string(m.rows()) + " x " + std::to_string(m.cols());
 }
 
@@ -51,16 +54,30 @@ double roundoff_tolerance(const Eigen::MatrixXd& m) {
   return 100.0 * static_cast<double>(m.rows()) * std::numeric_limits<double>::epsilon() * scale;
 }
 
-void check_square_symmetric(const Eigen::MatrixXd& m, Eigen::Index d, const char* field) {
+void check_square_symmetric(const ModelMatrix& m, Eigen::Index d, const char* field) {
   if (m.rows() != d || m.cols() != d) {
     fail(std::string(field) + " is " + shape(m) + ", must be " + std::to_string(d) + " x " +
          std::to_string(d) + " (the size of model.mass)");
   }
-  if (!m.allFinite()) fail(std::string(field) + " has a non-finite entry");
-  const double asym = (m - m.transpose()).cwiseAbs().maxCoeff();
-  if (asym > roundoff_tolerance(m)) {
+  if (!m.all_finite()) fail(std::string(field) + " has a non-finite entry");
+  const double asym = m.max_asymmetry();
+  const double tol =
+      100.0 * static_cast<double>(d) * std::numeric_limits<double>::epsilon() * m.max_abs();
+  if (asym > tol) {
     fail(std::string(field) + " is not symmetric (max |A - A^T| = " + fmt(asym) + ")");
   }
+}
+
+// Definiteness of a sparse matrix without its spectrum (d may be 10^5): the diagonal of a diagonal
+// matrix, otherwise a sparse Cholesky factorisation of A + shift·I.
+bool sparse_positive_definite(const ModelMatrix& m, double shift, double& diagonal_min) {
+  const ModelMatrix::Sparse sym = m.symmetric_part().sparse();
+  diagonal_min = sym.rows() > 0 ? sym.diagonal().minCoeff() : 0.0;
+  if (m.is_diagonal()) return diagonal_min + shift > 0.0;
+  ModelMatrix::Sparse shifted = sym;
+  for (Eigen::Index i = 0; i < shifted.rows(); ++i) shifted.coeffRef(i, i) += shift;
+  Eigen::SimplicialLLT<ModelMatrix::Sparse> llt(shifted);
+  return llt.info() == Eigen::Success;
 }
 
 double smallest_eigenvalue(const Eigen::MatrixXd& m) {
@@ -85,16 +102,40 @@ void validate(const MechanicalModel& model) {
     fail("model.mass is " + shape(model.mass) + ", must be square and non-empty");
   }
   check_square_symmetric(model.mass, d, "model.mass");
-  const double mass_min = smallest_eigenvalue(model.mass);
-  if (!(mass_min > 0.0) || Eigen::LLT<Eigen::MatrixXd>(model.mass).info() != Eigen::Success) {
-    fail("model.mass is not symmetric positive definite (smallest eigenvalue " + fmt(mass_min) +
-         ")");
+  if (model.mass.is_sparse()) {
+    double diagonal_min = 0.0;
+    if (!sparse_positive_definite(model.mass, 0.0, diagonal_min)) {
+      fail(
+          "model.mass is not symmetric positive definite (sparse Cholesky factorisation fails; "
+          "smallest diagonal entry " +
+          fmt(diagonal_min) + ")");
+    }
+  } else {
+    const double mass_min = smallest_eigenvalue(model.mass.dense());
+    if (!(mass_min > 0.0) ||
+        Eigen::LLT<Eigen::MatrixXd>(model.mass.dense()).info() != Eigen::Success) {
+      fail("model.mass is not symmetric positive definite (smallest eigenvalue " + fmt(mass_min) +
+           ")");
+    }
   }
   check_square_symmetric(model.damping, d, "model.damping");
-  const double damping_min = smallest_eigenvalue(model.damping);
-  if (damping_min < -roundoff_tolerance(model.damping)) {
-    fail("model.damping is not symmetric positive semidefinite (smallest eigenvalue " +
-         fmt(damping_min) + ")");
+  if (model.damping.is_sparse()) {
+    // R + δI positive definite for a δ at round-off level ⇔ R positive semidefinite (to round-off).
+    const double shift = 100.0 * static_cast<double>(d) * std::numeric_limits<double>::epsilon() *
+                         std::max(1.0, model.damping.max_abs());
+    double diagonal_min = 0.0;
+    if (!sparse_positive_definite(model.damping, shift, diagonal_min)) {
+      fail(
+          "model.damping is not symmetric positive semidefinite (sparse Cholesky factorisation "
+          "of R + " +
+          fmt(shift) + " I fails; smallest diagonal entry " + fmt(diagonal_min) + ")");
+    }
+  } else {
+    const double damping_min = smallest_eigenvalue(model.damping.dense());
+    if (damping_min < -roundoff_tolerance(model.damping.dense())) {
+      fail("model.damping is not symmetric positive semidefinite (smallest eigenvalue " +
+           fmt(damping_min) + ")");
+    }
   }
   if (!std::isfinite(model.alpha) || model.alpha < 0.0 || model.alpha > 1.0) {
     fail("model.alpha = " + fmt(model.alpha) +

@@ -15,6 +15,13 @@ std::string shape(const Eigen::MatrixXd& m) {
 
 }  // namespace
 
+void Potential::hessian_values(const Eigen::Ref<const Eigen::VectorXd>&, double,
+                               std::span<double>) const {
+  throw std::logic_error(
+      "Potential::hessian_values called on a potential without a sparse Hessian "
+      "(has_sparse_hessian() is false)");
+}
+
 QuadraticPotential::QuadraticPotential(Eigen::MatrixXd stiffness)
     : QuadraticPotential(stiffness, Eigen::VectorXd::Zero(stiffness.rows())) {}
 

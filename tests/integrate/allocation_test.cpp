@@ -104,7 +104,7 @@ TEST_F(NoAllocation, AlphaOneLocalHistory) {
 
 TEST_F(NoAllocation, Conservative) {
   InitialValueProblem p = base(0.5, pendula());
-  p.model.damping.setZero();
+  p.model.damping.dense().setZero();
   Integrator integ(p);
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
 }
@@ -123,10 +123,11 @@ TEST_F(NoAllocation, FixedSizeAutodiffPotential) {
 TEST_F(NoAllocation, NonlinearChainD40) {
   constexpr Eigen::Index kD = 40;
   InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd::Identity(kD, kD);
-  p.model.mass.diagonal(1).setConstant(0.2);
-  p.model.mass.diagonal(-1).setConstant(0.2);
-  p.model.damping = 0.1 * p.model.mass;
+  Eigen::MatrixXd mass = Eigen::MatrixXd::Identity(kD, kD);
+  mass.diagonal(1).setConstant(0.2);
+  mass.diagonal(-1).setConstant(0.2);
+  p.model.mass = mass;
+  p.model.damping = 0.1 * mass;
   p.model.alpha = 0.75;
   p.model.potential =
       std::make_shared<const test::PendulumChain>(Eigen::VectorXd::Constant(kD, 9.81), 3.0);

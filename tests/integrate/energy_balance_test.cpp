@@ -88,7 +88,7 @@ TEST(ExactBalanceControl, TrapezoidalWorkWithoutEndTermsIsNotExact) {
     const Solution sol = integrate(p, fvi_gl(), opts);
     ASSERT_TRUE(sol.ok());
     const double h = p.step_size();
-    const Eigen::MatrixXd& R = p.model.damping;
+    const Eigen::MatrixXd R = p.model.damping.to_dense();
     Eigen::VectorXd f(2);
     double w = 0.0, worst = 0.0;
     Eigen::VectorXd force_prev = R * p.v0;

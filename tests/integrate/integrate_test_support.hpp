@@ -155,10 +155,11 @@ inline Eigen::MatrixXd dopri5_reference(const MechanicalModel& model, const Eige
   using State = std::vector<double>;
   namespace odeint = boost::numeric::odeint;
   const Eigen::Index d = x0.size();
-  const Eigen::LLT<Eigen::MatrixXd> llt(model.mass);
+  const Eigen::LLT<Eigen::MatrixXd> llt(model.mass.to_dense());
+  const Eigen::MatrixXd damping = model.damping.to_dense();
   auto rhs = [&](const State& z, State& dz, double t) {
     const Eigen::Map<const Eigen::VectorXd> x(z.data(), d), v(z.data() + d, d);
-    Eigen::VectorXd force = -model.damping * v;
+    Eigen::VectorXd force = -damping * v;
     if (model.potential) {
       Eigen::VectorXd g(d);
       model.potential->gradient(x, t, g);

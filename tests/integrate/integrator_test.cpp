@@ -284,7 +284,7 @@ TEST(MethodValue, NameOrderParse) {
   model.mass = Eigen::MatrixXd::Identity(2, 2);
   model.damping = Eigen::MatrixXd::Zero(2, 2);
   EXPECT_EQ(m.declared_order(model), 2);
-  model.damping(1, 1) = 0.1;
+  model.damping.dense()(1, 1) = 0.1;
   EXPECT_EQ(m.declared_order(model), 1);
   ASSERT_TRUE(parse_method("fvi-gl").has_value());
   EXPECT_FALSE(parse_method("fvi").has_value());

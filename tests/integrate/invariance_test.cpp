@@ -37,8 +37,8 @@ InitialValueProblem x_problem(double alpha) {
 InitialValueProblem z_problem(const InitialValueProblem& x, const Eigen::MatrixXd& lambda) {
   InitialValueProblem z = x;
   const Eigen::MatrixXd lt = lambda.transpose();
-  z.model.mass = lt * x.model.mass * lambda;
-  z.model.damping = lt * x.model.damping * lambda;
+  z.model.mass = lt * x.model.mass.to_dense() * lambda;
+  z.model.damping = lt * x.model.damping.to_dense() * lambda;
   z.model.potential = std::make_shared<const test::TransformedPotential>(x.model.potential, lambda);
   const Forcing fx = x.model.forcing;
   z.model.forcing = [fx, lt](double t, Eigen::Ref<Eigen::VectorXd> out) {

@@ -186,7 +186,7 @@ TEST_P(Mechanical, IntegratorTrajectorySolvesTheExtendedEquations) {
       prt.y_equation.col(1).cwiseAbs().maxCoeff());
   EXPECT_LE(ext.max_norm(), tol);
   // The x-equation of the printed sum at k = N−1 misses M Δ_−x_N/h: O(1/h).
-  const Eigen::VectorXd missing = p.model.mass * (x.col(n) - x.col(n - 1)) / (h * h);
+  const Eigen::VectorXd missing = p.model.mass.to_dense() * (x.col(n) - x.col(n - 1)) / (h * h);
   EXPECT_LE((prt.x_equation.col(n - 1) - ext.x_equation.col(n - 1) - missing).cwiseAbs().maxCoeff(),
             tol);
   EXPECT_GT(prt.max_norm(), 1e6 * tol);

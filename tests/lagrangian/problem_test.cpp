@@ -122,8 +122,8 @@ TEST(MechanicalForm, RecognisesPartLagrangianAndRefusesTheRest) {
       "0.5*(2*xdot1^2 + 2*0.5*xdot1*xdot2 + 3*xdot2^2) + ydot1^2 - (x1^2 + cos(x2) - "
       "t*x1) - sin(y1) - (0.7*dx1*dy1 + 0.1*dx1*dy2 + 0.1*dx2*dy1 + 0.2*dx2*dy2) + 0.1*y1*ydot1");
   ASSERT_TRUE(ok.model) << ok.reason;
-  EXPECT_EQ(ok.model->mass, (Eigen::Matrix2d() << 2.0, 0.5, 0.5, 3.0).finished());
-  EXPECT_EQ(ok.model->damping, (Eigen::Matrix2d() << 0.7, 0.1, 0.1, 0.2).finished());
+  EXPECT_EQ(ok.model->mass.to_dense(), (Eigen::Matrix2d() << 2.0, 0.5, 0.5, 3.0).finished());
+  EXPECT_EQ(ok.model->damping.to_dense(), (Eigen::Matrix2d() << 0.7, 0.1, 0.1, 0.2).finished());
   Eigen::VectorXd g(2);
   ok.model->potential->gradient(Eigen::Vector2d(0.3, 0.4), 2.0, g);
   EXPECT_NEAR(g(0), 2 * 0.3 - 2.0, 1e-15);

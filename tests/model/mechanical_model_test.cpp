@@ -53,7 +53,7 @@ TEST(Validation, MassNotPositiveDefinite) {
 
 TEST(Validation, MassNotSymmetric) {
   InitialValueProblem p = valid();
-  p.model.mass(0, 1) = 0.7;
+  p.model.mass.dense()(0, 1) = 0.7;
   expect_rejected(p, {"model.mass is not symmetric (max |A - A^T| = 0.19999999999999996)"});
 }
 
@@ -108,7 +108,7 @@ TEST(Validation, RiemannLiouvilleIllPosed) {
   p.model.alpha = 0.3;
   EXPECT_NO_THROW(validate(p));
   p.model.alpha = 0.75;
-  p.model.damping.setZero();
+  p.model.damping.dense().setZero();
   EXPECT_NO_THROW(validate(p));
 }
 

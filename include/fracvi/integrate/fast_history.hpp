@@ -50,6 +50,10 @@ class FastHistory final : public History {
   [[nodiscard]] std::size_t capacity() const override { return capacity_; }
   [[nodiscard]] Eigen::Index dimension() const override { return ring_.rows(); }
   [[nodiscard]] double order() const override { return fit_->order; }
+  /// OpenMP threads for push() and sum() (0 = OpenMP's default). They split the degrees of
+  /// freedom; below kParallelWork multiply–adds per step one thread does everything (a parallel
+  /// region costs about a microsecond).
+  void set_threads(int threads) override { threads_ = threads; }
 
   [[nodiscard]] const ExponentialFit& fit() const { return *fit_; }
   /// n0, the number of exactly weighted recent lags.
@@ -68,7 +72,12 @@ class FastHistory final : public History {
   Eigen::ArrayXXd state_;          // K × d; column i holds Y_1 … Y_K of degree of freedom i
   Eigen::VectorXd tail_;           // Σ_j w_j Y_j (d), updated by push()
   std::size_t size_ = 0;
+  int threads_ = 0;
 };
+
+/// Multiply–adds per step (K·d for the recursions, n0·d for the window) from which FastHistory
+/// splits the degrees of freedom over threads.
+inline constexpr Eigen::Index kParallelWork = 32768;
 
 /// The max_lag used by FastHistory(order, …) for a capacity: the next power of two ≥
 /// capacity − 1 (at least 1), so that runs of similar length share one cached fit. A fit for a

@@ -45,6 +45,9 @@ class History {
   [[nodiscard]] virtual Eigen::Index dimension() const = 0;
   /// The order 2α of the weights (1 − ζ)^{2α}.
   [[nodiscard]] virtual double order() const = 0;
+  /// Threads for the work over degrees of freedom (0 = OpenMP's default). Only the fast history
+  /// has enough work per step to use them; the others ignore it.
+  virtual void set_threads(int threads) { static_cast<void>(threads); }
 };
 
 /// All x̃ kept, exact convolution with c = gl_weights(order). O(k·d) per sum.

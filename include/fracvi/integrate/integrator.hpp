@@ -34,6 +34,7 @@
 #include "fracvi/integrate/history.hpp"
 #include "fracvi/integrate/method.hpp"
 #include "fracvi/integrate/solution.hpp"
+#include "fracvi/integrate/symmetric_factor.hpp"
 #include "fracvi/model/mechanical_model.hpp"
 
 namespace fracvi {
@@ -68,6 +69,17 @@ struct IntegratorOptions {
   /// Solution::max_balance_error is NaN.
   bool diagnostics = true;
   StartValue start = StartValue::kDiscreteLegendre;
+  /// Factorisation of the Newton matrix M + (h²/4)∇²U (and of M for v = M⁻¹p): kAuto uses a band
+  /// or sparse factorisation when M is stored sparse and the potential declares a sparse Hessian
+  /// (O(d) per step for chains), dense otherwise (symmetric_factor.hpp).
+  LinearSolver linear_solver = LinearSolver::kAuto;
+  /// Store every n-th state (and always the last one): a run of 10^6 steps of 1000 degrees of
+  /// freedom would otherwise keep 16 GB of positions and velocities. Diagnostics and the mirror
+  /// check still see every step (the mirror error is then the maximum over the stored rows).
+  std::size_t save_every = 1;
+  /// Threads for the work over degrees of freedom (fast-history recursions): 0 = OpenMP's default
+  /// (all cores, or OMP_NUM_THREADS); small systems run on one thread regardless.
+  int threads = 0;
 };
 
 /// Throws ValidationError naming the offending field.
@@ -131,16 +143,18 @@ class Integrator {
   [[nodiscard]] const Method& method() const;
   [[nodiscard]] const IntegratorOptions& options() const;
 
-  /// The storage so far: all N+1 rows are allocated, rows beyond steps_done() are NaN.
+  /// The storage so far: all stored rows are allocated, rows not reached yet are NaN.
   [[nodiscard]] const Solution& solution() const;
+  /// The factorisation in use for the Newton matrix (kDense, kBanded or kSparse).
+  [[nodiscard]] LinearSolver linear_solver() const;
 
   /// Runs the backward mirror equation on the computed trajectory (if options().mirror and the run
   /// succeeded), records the wall time, drops unreached rows and hands the solution over. The
   /// Integrator is unusable afterwards.
   Solution take_solution();
 
-  /// The mirror run alone: max_k ‖y_k − x_{N−k}‖_∞, or NaN if the run has not succeeded or the
-  /// backward Newton fails.
+  /// The mirror run alone: max_k ‖y_k − x_{N−k}‖_∞ over the stored rows, or NaN if the run has
+  /// not succeeded or the backward Newton fails.
   [[nodiscard]] double mirror_error() const;
 
  private:

@@ -14,12 +14,21 @@
 // side c = O(h) carries no large cancelling terms (solving A u = A a + c would leave a residual of
 // ε‖A a‖, i.e. a momentum error ε‖a‖/h per step).
 //
-// All workspace is allocated in the constructor; solve() does not allocate or throw.
+// J is factored dense, banded or sparse (symmetric_factor.hpp), chosen from the storage of A and
+// the potential's Hessian pattern: a chain with diagonal M costs O(d) per iteration.
+//
+// All workspace is allocated in the constructor; solve() does not allocate (for the dense and
+// banded factorisations; Eigen's sparse LDLᵀ allocates inside) and does not throw.
 #pragma once
 
 #include <Eigen/Dense>
+#include <memory>
+#include <utility>
+#include <vector>
 
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/integrate/symmetric_factor.hpp"
+#include "fracvi/model/model_matrix.hpp"
 #include "fracvi/model/potential.hpp"
 
 namespace fracvi::internal {
@@ -29,6 +38,7 @@ struct NewtonReport {
   int iterations = 0;
   double correction = 0.0;  ///< ‖δ‖_∞ of the last correction
   double tolerance = 0.0;   ///< the bound it had to meet
+  bool singular = false;    ///< the Newton matrix could not be factored (status kNewtonFailure)
 };
 
 class MidpointNewton {
@@ -36,8 +46,10 @@ class MidpointNewton {
   /// potential may be null (U ≡ 0). If it is null or has a constant Hessian, J is formed and
   /// factored here, once (Hessian taken at (0, t_hessian)), and solve() takes exactly one
   /// correction from the initial guess: the equation is linear, so that is its exact solution.
-  MidpointNewton(Eigen::MatrixXd A, double h, const Potential* potential,
-                 const NewtonOptions& options, double t_hessian = 0.0);
+  /// solver picks the factorisation of J (kAuto: from the structure, see
+  /// SymmetricFactor); A must be symmetric.
+  MidpointNewton(ModelMatrix A, double h, const Potential* potential, const NewtonOptions& options,
+                 double t_hessian = 0.0, LinearSolver solver = LinearSolver::kAuto);
 
   /// Solves for the increment Δ, starting from the guess in `increment`. forcing_tau is f(τ) or
   /// null (f ≡ 0). Convergence: ‖δ‖_∞ ≤ atol + rtol · max(‖a + Δ‖_∞, ‖a‖_∞), δ the last
@@ -51,16 +63,31 @@ class MidpointNewton {
                           const Eigen::VectorXd* forcing_tau, Eigen::Ref<Eigen::VectorXd> g) const;
 
   [[nodiscard]] bool is_linear() const { return linear_; }
+  /// The factorisation in use: kDense, kBanded or kSparse.
+  [[nodiscard]] LinearSolver linear_solver() const { return backend_; }
 
  private:
-  Eigen::MatrixXd A_;
+  // J = A + (h²/4)∇²U(mid, τ) into the dense matrix or the structured factor; false if singular.
+  bool factor_jacobian(double tau);
+
+  ModelMatrix A_;
   double half_h2_;     // h²/2
   double quarter_h2_;  // h²/4
   const Potential* potential_;
   NewtonOptions options_;
   bool linear_;
+  LinearSolver backend_;
+  // kDense
   Eigen::MatrixXd hessian_, jacobian_;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
+  // kBanded / kSparse: J's values = A's (scattered once) + (h²/4) × Hessian values.
+  std::unique_ptr<SymmetricFactor> factor_;
+  std::vector<std::pair<std::size_t, double>> a_scatter_;
+  std::vector<std::size_t> hessian_at_;  // pattern index of each hessian_values() entry
+  std::vector<double> hessian_values_;
+  bool dense_hessian_in_pattern_ = false;
+  bool constant_factor_ok_ = true;  // linear problems: J factored once in the constructor  //
+                                    // potential without a sparse Hessian, forced structured
   Eigen::VectorXd mid_, grad_, residual_, delta_;
 };
 

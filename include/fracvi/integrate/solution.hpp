@@ -1,8 +1,11 @@
 // The result of a run: grid, states, diagnostics, statistics and a status (DESIGN §4).
 //
-// States are row-major (N+1) × d contiguous arrays: row k is x_k, and the buffer can be handed to
-// NumPy without a copy. If a run stops early, the rows 0 … steps_done are the trajectory computed
-// so far (integrate() and Integrator::take_solution() drop the rows that were never reached).
+// States are row-major contiguous arrays, one row per stored step: with the default
+// IntegratorOptions::save_every = 1 that is (N+1) × d and row k is x_k; with save_every = s the
+// rows are the steps 0, s, 2s, … and always the last computed one (step[i] names them). The buffer
+// can be handed to NumPy without a copy. If a run stops early, the rows are the trajectory computed
+// so far, ending with the last completed step (integrate() and Integrator::take_solution() drop the
+// rows that were never reached).
 //
 // Diagnostics (docs/theory/start_step.md §4):
 //   energy[k]      E_k = ½ v_kᵀ M v_k + U(x_k, t_k)       (no −f·x term)
@@ -24,6 +27,7 @@
 #include <limits>
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace fracvi {
 
@@ -40,9 +44,10 @@ enum class Status {
 std::string_view to_string(Status status);
 
 struct Solution {
-  Eigen::VectorXd t;  ///< t_k, k = 0 … steps_done
-  RowMatrixXd x;      ///< positions, (steps_done + 1) × d
-  RowMatrixXd v;      ///< velocities v_k = M⁻¹ p_k from the grid momentum (start_step.md §2)
+  Eigen::VectorXd t;              ///< t_k of the stored steps
+  std::vector<std::size_t> step;  ///< the step index k of each stored row
+  RowMatrixXd x;                  ///< positions, (steps_done + 1) × d
+  RowMatrixXd v;  ///< velocities v_k = M⁻¹ p_k from the grid momentum (start_step.md §2)
 
   Eigen::VectorXd energy;      ///< E_k (NaN with options.diagnostics = false)
   Eigen::VectorXd dissipated;  ///< W_k (idem)
@@ -54,6 +59,8 @@ struct Solution {
   std::size_t steps_done = 0;         ///< completed steps; rows 0 … steps_done are valid
   std::size_t newton_iterations = 0;  ///< total over all steps (1 per step for linear problems)
   std::size_t max_newton_iterations_per_step = 0;
+  std::size_t save_every = 1;  ///< IntegratorOptions::save_every of the run
+  std::string linear_solver;   ///< factorisation used: "dense", "banded" or "sparse"
 
   /// max_k ‖y_k − x_{N−k}‖_∞ from the independent backward run of the mirror equation
   /// (`DiscEqs`, second line); NaN if not computed (disabled, or the run did not succeed).

@@ -34,6 +34,11 @@ class ExpressionPotential final : public Potential {
     return derivatives_.hessian_is_constant();
   }
   [[nodiscard]] bool is_time_dependent() const override { return time_dependent_; }
+  /// The engine's symbolic Hessian pattern: a chain of springs has O(d) entries.
+  [[nodiscard]] bool has_sparse_hessian() const override { return true; }
+  [[nodiscard]] std::vector<HessianEntry> hessian_pattern() const override;
+  void hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+                      std::span<double> values) const override;
 
   [[nodiscard]] const Expression& expression() const { return derivatives_.expression(); }
 

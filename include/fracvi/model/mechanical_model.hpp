@@ -27,6 +27,7 @@
 #include <string>
 #include <string_view>
 
+#include "fracvi/model/model_matrix.hpp"
 #include "fracvi/model/potential.hpp"
 
 namespace fracvi {
@@ -47,9 +48,12 @@ using Forcing = std::function<void(double t, Eigen::Ref<Eigen::VectorXd> out)>;
 
 /// M x'' + R D^{2α} x + ∇U(x, t) = f(t).
 struct MechanicalModel {
-  Eigen::MatrixXd mass;     ///< M, symmetric positive definite, d × d
-  Eigen::MatrixXd damping;  ///< R, symmetric positive semidefinite, d × d (zero: conservative)
-  double alpha = 0.5;       ///< Lagrangian order α ∈ [0, 1]; the damping order is 2α
+  /// M, symmetric positive definite, d × d. Dense or sparse (model_matrix.hpp): large systems store
+  /// it sparse, e.g. ModelMatrix::identity(d, m).
+  ModelMatrix mass;
+  /// R, symmetric positive semidefinite, d × d (zero or empty: conservative). Dense or sparse.
+  ModelMatrix damping;
+  double alpha = 0.5;  ///< Lagrangian order α ∈ [0, 1]; the damping order is 2α
   /// Caputo is the default because it is well posed for all initial data; with zero initial data,
   /// or α = 1/2, the two conventions give identical trajectories.
   Convention convention = Convention::kCaputo;

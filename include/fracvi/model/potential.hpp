@@ -13,12 +13,17 @@
 // heap traffic (QuadraticPotential, fixed-size autodiff potentials); dynamic-size autodiff
 // potentials allocate inside their own evaluations.
 //
-// Sparse Hessians: the interface is dense today. A sparse path will be added as extra virtual
-// methods with a default (has_sparse_hessian() = false), so existing potentials stay valid.
+// Sparse Hessians (chains, lattices): a potential may also declare the structure of ∇²U once
+// (hessian_pattern(), upper triangle) and fill only those entries (hessian_values()). With a
+// sparse mass matrix the integrator then factors its Newton matrix banded or sparse and a step
+// costs O(d) instead of O(d³) (integrate/symmetric_factor.hpp). The dense hessian() stays
+// required: small problems, tests and the dense path use it.
 #pragma once
 
 #include <Eigen/Dense>
 #include <memory>
+#include <span>
+#include <vector>
 
 namespace fracvi {
 
@@ -50,6 +55,22 @@ class Potential {
   /// U the work of the explicit time dependence, Σ [U(x̄_k, t_{k+1}) − U(x̄_k, t_k)], enters the
   /// dissipated work (two extra value() calls per step). The default is the safe answer.
   [[nodiscard]] virtual bool is_time_dependent() const { return true; }
+
+  /// One structurally non-zero entry of the upper triangle of ∇²U (row ≤ col).
+  struct HessianEntry {
+    Eigen::Index row;
+    Eigen::Index col;
+  };
+  /// True when the potential provides hessian_pattern() and hessian_values().
+  [[nodiscard]] virtual bool has_sparse_hessian() const { return false; }
+  /// The entries of the upper triangle of ∇²U that can be non-zero, each once (any order). Called
+  /// once at set-up. Default: empty (only meaningful when has_sparse_hessian()).
+  [[nodiscard]] virtual std::vector<HessianEntry> hessian_pattern() const { return {}; }
+  /// values[e] = ∂²U/∂x_row ∂x_col at (x, t) for the e-th entry of hessian_pattern(). Called in the
+  /// step loop: must not allocate if the loop is to stay allocation-free. The default throws
+  /// std::logic_error (a potential without a sparse Hessian).
+  virtual void hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+                              std::span<double> values) const;
 };
 
 /// U(x) = ½ xᵀ K x − bᵀ x with K symmetric (not necessarily definite). Time-independent, constant

@@ -1,0 +1,50 @@
+// Work over degrees of freedom split across OpenMP threads (internal).
+//
+// OpenMP because it ships with the compiler (libgomp), needs no package and states the one pattern
+// we use — a loop over d split into contiguous blocks, one per thread — in one pragma; TBB or the
+// std::execution policies (which need TBB under libstdc++) would add a dependency for the same
+// thing. With one thread nothing calls into OpenMP, so small systems pay nothing and stay
+// allocation-free; libgomp allocates its thread team once, at the first parallel region.
+#pragma once
+
+#include <omp.h>
+
+#include <Eigen/Core>
+
+namespace fracvi::internal {
+
+/// Threads for a loop: 1 when `work` is below `threshold`, else `requested` (0 = OpenMP's default,
+/// i.e. all cores or OMP_NUM_THREADS).
+inline int team_size(int requested, Eigen::Index work, Eigen::Index threshold) {
+  if (work < threshold) return 1;
+  return requested > 0 ? requested : omp_get_max_threads();
+}
+
+/// body(lo, hi) on contiguous blocks covering [0, n), one per thread.
+template <class Body>
+void for_blocks(Eigen::Index n, int threads, Body&& body) {
+  if (threads <= 1) {
+    body(Eigen::Index{0}, n);
+    return;
+  }
+#pragma omp parallel num_threads(threads)
+  {
+    const Eigen::Index parts = omp_get_num_threads(), part = omp_get_thread_num();
+    body(n * part / parts, n * (part + 1) / parts);
+  }
+}
+
+/// Σ over blocks of body(lo, hi) (a double).
+template <class Body>
+double sum_blocks(Eigen::Index n, int threads, Body&& body) {
+  if (threads <= 1) return body(Eigen::Index{0}, n);
+  double total = 0.0;
+#pragma omp parallel num_threads(threads) reduction(+ : total)
+  {
+    const Eigen::Index parts = omp_get_num_threads(), part = omp_get_thread_num();
+    total += body(n * part / parts, n * (part + 1) / parts);
+  }
+  return total;
+}
+
+}  // namespace fracvi::internal

@@ -1,0 +1,190 @@
+#include "fracvi/model/chain_potential.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "fracvi/internal/parallel.hpp"
+
+namespace fracvi {
+
+std::optional<ChainBoundary> parse_chain_boundary(std::string_view name) {
+  if (name == "fixed") return ChainBoundary::kFixed;
+  if (name == "free") return ChainBoundary::kFree;
+  if (name == "periodic") return ChainBoundary::kPeriodic;
+  return std::nullopt;
+}
+
+std::string_view to_string(ChainBoundary boundary) {
+  switch (boundary) {
+    case ChainBoundary::kFixed: return "fixed";
+    case ChainBoundary::kFree: return "free";
+    case ChainBoundary::kPeriodic: return "periodic";
+  }
+  return "unknown";
+}
+
+namespace {
+
+// V(r) = ½ k r² + (a/3) r³ + (b/4) r⁴ and its derivatives.
+struct Spring {
+  double k, a, b;
+  [[nodiscard]] double energy(double r) const {
+    const double r2 = r * r;
+    return r2 * (0.5 * k + r * (a / 3.0 + 0.25 * b * r));
+  }
+  [[nodiscard]] double force(double r) const { return r * (k + r * (a + b * r)); }            // V'
+  [[nodiscard]] double stiffness(double r) const { return k + r * (2.0 * a + 3.0 * b * r); }  // V''
+};
+
+// The neighbours of i: x_{i−1} and x_{i+1} with the boundary's convention, and whether the bond
+// exists (free ends have one bond only).
+struct Neighbours {
+  double left = 0.0, right = 0.0;
+  bool has_left = true, has_right = true;
+};
+
+Neighbours neighbours(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Index i, Eigen::Index d,
+                      ChainBoundary boundary) {
+  Neighbours n;
+  switch (boundary) {
+    case ChainBoundary::kFixed:  // walls at rest
+      n.left = i > 0 ? x[i - 1] : 0.0;
+      n.right = i + 1 < d ? x[i + 1] : 0.0;
+      break;
+    case ChainBoundary::kFree:
+      n.has_left = i > 0;
+      n.has_right = i + 1 < d;
+      n.left = n.has_left ? x[i - 1] : 0.0;
+      n.right = n.has_right ? x[i + 1] : 0.0;
+      break;
+    case ChainBoundary::kPeriodic:
+      n.left = x[i > 0 ? i - 1 : d - 1];
+      n.right = x[i + 1 < d ? i + 1 : 0];
+      break;
+  }
+  return n;
+}
+
+int chain_threads(const ChainOptions& o) {
+  return internal::team_size(o.threads, o.dimension, kChainParallelDofs);
+}
+
+}  // namespace
+
+ChainPotential::ChainPotential(const ChainOptions& options) : options_(options) {
+  const Eigen::Index d = options.dimension;
+  const Eigen::Index minimum = options.boundary == ChainBoundary::kPeriodic ? 3
+                               : options.boundary == ChainBoundary::kFree   ? 2
+                                                                            : 1;
+  if (d < minimum) {
+    throw std::invalid_argument("chain.dim = " + std::to_string(d) +
+                                " must be >= " + std::to_string(minimum) +
+                                " for boundary = " + std::string(to_string(options.boundary)));
+  }
+  const std::pair<const char*, double> coefficients[] = {{"chain.stiffness", options.stiffness},
+                                                         {"chain.cubic", options.cubic},
+                                                         {"chain.quartic", options.quartic},
+                                                         {"chain.onsite", options.onsite}};
+  for (const auto& [name, value] : coefficients) {
+    if (!std::isfinite(value)) {
+      throw std::invalid_argument(std::string(name) + " must be finite");
+    }
+  }
+  if (options.threads < 0) {
+    throw std::invalid_argument("chain.threads = " + std::to_string(options.threads) +
+                                " must be >= 0 (0 = all cores)");
+  }
+}
+
+double ChainPotential::value(const Eigen::Ref<const Eigen::VectorXd>& x, double) const {
+  const Spring v{options_.stiffness, options_.cubic, options_.quartic};
+  const Eigen::Index d = options_.dimension;
+  const ChainBoundary boundary = options_.boundary;
+  const double c = options_.onsite;
+  // Each bond once, as the right bond of its left mass (the fixed chain adds the left wall bond).
+  return internal::sum_blocks(d, chain_threads(options_), [&](Eigen::Index lo, Eigen::Index hi) {
+    double total = 0.0;
+    for (Eigen::Index i = lo; i < hi; ++i) {
+      const Neighbours n = neighbours(x, i, d, boundary);
+      double e = 0.5 * c * x[i] * x[i];
+      if (n.has_right) e += v.energy(n.right - x[i]);
+      if (i == 0 && boundary == ChainBoundary::kFixed) e += v.energy(x[0]);
+      total += e;
+    }
+    return total;
+  });
+}
+
+void ChainPotential::gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double,
+                              Eigen::Ref<Eigen::VectorXd> g) const {
+  const Spring v{options_.stiffness, options_.cubic, options_.quartic};
+  const Eigen::Index d = options_.dimension;
+  const ChainBoundary boundary = options_.boundary;
+  const double c = options_.onsite;
+  internal::for_blocks(d, chain_threads(options_), [&](Eigen::Index lo, Eigen::Index hi) {
+    for (Eigen::Index i = lo; i < hi; ++i) {
+      const Neighbours n = neighbours(x, i, d, boundary);
+      double gi = c * x[i];
+      if (n.has_left) gi += v.force(x[i] - n.left);
+      if (n.has_right) gi -= v.force(n.right - x[i]);
+      g[i] = gi;
+    }
+  });
+}
+
+std::vector<Potential::HessianEntry> ChainPotential::hessian_pattern() const {
+  const Eigen::Index d = options_.dimension;
+  std::vector<HessianEntry> pattern;
+  pattern.reserve(static_cast<std::size_t>(2 * d));
+  for (Eigen::Index i = 0; i < d; ++i) pattern.push_back({i, i});
+  for (Eigen::Index i = 0; i + 1 < d; ++i) pattern.push_back({i, i + 1});
+  if (options_.boundary == ChainBoundary::kPeriodic) pattern.push_back({0, d - 1});
+  return pattern;
+}
+
+void ChainPotential::hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double,
+                                    std::span<double> values) const {
+  const Spring v{options_.stiffness, options_.cubic, options_.quartic};
+  const Eigen::Index d = options_.dimension;
+  const ChainBoundary boundary = options_.boundary;
+  const double c = options_.onsite;
+  double* diagonal = values.data();
+  double* upper = values.data() + d;  // (i, i+1)
+  internal::for_blocks(d, chain_threads(options_), [&](Eigen::Index lo, Eigen::Index hi) {
+    for (Eigen::Index i = lo; i < hi; ++i) {
+      const Neighbours n = neighbours(x, i, d, boundary);
+      double hii = c;
+      if (n.has_left) hii += v.stiffness(x[i] - n.left);
+      if (n.has_right) hii += v.stiffness(n.right - x[i]);
+      diagonal[i] = hii;
+      if (i + 1 < d) upper[i] = -v.stiffness(x[i + 1] - x[i]);
+    }
+  });
+  if (boundary == ChainBoundary::kPeriodic)
+    values[static_cast<std::size_t>(2 * d - 1)] = -v.stiffness(x[0] - x[d - 1]);
+}
+
+void ChainPotential::hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double,
+                             Eigen::Ref<Eigen::MatrixXd> H) const {
+  // The dense form of hessian_values() (small chains on the dense path); no allocation.
+  const Spring v{options_.stiffness, options_.cubic, options_.quartic};
+  const Eigen::Index d = options_.dimension;
+  H.setZero();
+  for (Eigen::Index i = 0; i < d; ++i) {
+    const Neighbours n = neighbours(x, i, d, options_.boundary);
+    H(i, i) = options_.onsite;
+    if (n.has_left) H(i, i) += v.stiffness(x[i] - n.left);
+    if (n.has_right) H(i, i) += v.stiffness(n.right - x[i]);
+    if (i + 1 < d) H(i, i + 1) = H(i + 1, i) = -v.stiffness(x[i + 1] - x[i]);
+  }
+  if (options_.boundary == ChainBoundary::kPeriodic) {
+    H(0, d - 1) = H(d - 1, 0) = -v.stiffness(x[0] - x[d - 1]);
+  }
+}
+
+std::shared_ptr<const Potential> make_chain_potential(const ChainOptions& options) {
+  return std::make_shared<const ChainPotential>(options);
+}
+
+}  // namespace fracvi
