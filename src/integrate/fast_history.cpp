@@ -112,6 +112,13 @@ void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
                        });
 }
 
+void FastHistory::set_threads(int threads) {
+  threads_ = threads;
+  const Eigen::Index d = ring_.rows();
+  internal::start_threads(internal::team_size(
+      threads_, d * std::max<Eigen::Index>(state_.rows(), window_), kParallelWork));
+}
+
 void FastHistory::clear() {
   ring_.setZero();
   state_.setZero();

@@ -106,7 +106,7 @@ void MidpointNewton::effective_gradient(const Eigen::Ref<const Eigen::VectorXd>&
 NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, double tau,
                                    const Eigen::Ref<const Eigen::VectorXd>& c,
                                    const Eigen::VectorXd* forcing_tau,
-                                   Eigen::Ref<Eigen::VectorXd> increment) noexcept {
+                                   Eigen::Ref<Eigen::VectorXd> increment) {
   NewtonReport report;
   const int max_iterations = linear_ ? 1 : options_.max_iterations;
   const double a_norm = a.cwiseAbs().maxCoeff();

@@ -95,6 +95,7 @@ ChainPotential::ChainPotential(const ChainOptions& options) : options_(options) 
     throw std::invalid_argument("chain.threads = " + std::to_string(options.threads) +
                                 " must be >= 0 (0 = all cores)");
   }
+  internal::start_threads(chain_threads(options_));  // set-up, not the step loop, allocates
 }
 
 double ChainPotential::value(const Eigen::Ref<const Eigen::VectorXd>& x, double) const {

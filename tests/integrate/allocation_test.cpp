@@ -5,7 +5,8 @@
 //
 // Covered: linear (constant Hessian, one solve per step) and nonlinear (Newton) paths, local
 // (α = 1/2, 1), direct and fast (α = 0.75) histories, forcing, R = 0, a fixed-size autodiff
-// potential. Control: a dynamic-size autodiff potential does allocate, so the counter is live.
+// potential, large FPUT chains on the banded path with OpenMP threads. Control: a dynamic-size
+// autodiff potential does allocate, so the counter is live.
 #include <gtest/gtest.h>
 
 #include <cstddef>
@@ -13,6 +14,7 @@
 
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/autodiff_potential.hpp"
+#include "fracvi/model/chain_potential.hpp"
 #include "integrate_test_support.hpp"
 
 #include "../support/allocation_counter.hpp"
@@ -136,6 +138,46 @@ TEST_F(NoAllocation, NonlinearChainD40) {
   p.t_end = 1.0;
   p.steps = 50;
   Integrator integ(p);
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+// Large chains on the structured path: diagonal sparse M and R, the FPUT chain's tridiagonal
+// Hessian, LAPACK's band Cholesky, and OpenMP threads in the fast history (K·d above
+// kParallelWork) and in the chain's loops (d ≥ kChainParallelDofs). OpenMP starts its thread team
+// during set-up (set_threads / the chain's constructor), so the steps allocate nothing.
+InitialValueProblem large_chain(Eigen::Index d, std::size_t steps, int threads) {
+  InitialValueProblem p;
+  p.model.mass = ModelMatrix::identity(d, 1.0);
+  p.model.damping = ModelMatrix::identity(d, 0.1);
+  p.model.alpha = 0.75;
+  ChainOptions chain;
+  chain.dimension = d;
+  chain.quartic = 1.0;
+  chain.threads = threads;
+  p.model.potential = make_chain_potential(chain);
+  p.x0 = Eigen::VectorXd::LinSpaced(d, 0.0, 3.0).array().sin() * 0.3;
+  p.v0 = Eigen::VectorXd::Zero(d);
+  p.t_end = 0.5;
+  p.steps = steps;
+  return p;
+}
+
+TEST_F(NoAllocation, BandedChainWithThreadedFastHistory) {
+  IntegratorOptions options;
+  options.history = HistoryKind::kFast;
+  options.threads = 2;
+  Integrator integ(large_chain(3000, 200, 2), fvi_gl(), options);
+  ASSERT_EQ(integ.linear_solver(), LinearSolver::kBanded);
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+TEST_F(NoAllocation, ThreadedChainPotential) {
+  IntegratorOptions options;
+  options.history = HistoryKind::kFast;
+  options.threads = 2;
+  options.save_every = 10;
+  Integrator integ(large_chain(kChainParallelDofs + 100, 30, 2), fvi_gl(), options);
+  ASSERT_EQ(integ.linear_solver(), LinearSolver::kBanded);
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
 }
 

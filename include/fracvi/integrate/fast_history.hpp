@@ -53,7 +53,7 @@ class FastHistory final : public History {
   /// OpenMP threads for push() and sum() (0 = OpenMP's default). They split the degrees of
   /// freedom; below kParallelWork multiply–adds per step one thread does everything (a parallel
   /// region costs about a microsecond).
-  void set_threads(int threads) override { threads_ = threads; }
+  void set_threads(int threads) override;
 
   [[nodiscard]] const ExponentialFit& fit() const { return *fit_; }
   /// n0, the number of exactly weighted recent lags.

@@ -18,7 +18,8 @@
 // the potential's Hessian pattern: a chain with diagonal M costs O(d) per iteration.
 //
 // All workspace is allocated in the constructor; solve() does not allocate (for the dense and
-// banded factorisations; Eigen's sparse LDLᵀ allocates inside) and does not throw.
+// banded factorisations; Eigen's sparse LDLᵀ allocates inside). It throws only what the potential
+// throws (the integrator turns that into Status::kCallbackError).
 #pragma once
 
 #include <Eigen/Dense>
@@ -56,7 +57,7 @@ class MidpointNewton {
   /// correction (already applied).
   NewtonReport solve(const Eigen::Ref<const Eigen::VectorXd>& a, double tau,
                      const Eigen::Ref<const Eigen::VectorXd>& c, const Eigen::VectorXd* forcing_tau,
-                     Eigen::Ref<Eigen::VectorXd> increment) noexcept;
+                     Eigen::Ref<Eigen::VectorXd> increment);
 
   /// g = ∇U(z, τ) − f(τ) (zero potential and forcing allowed).
   void effective_gradient(const Eigen::Ref<const Eigen::VectorXd>& z, double tau,

@@ -20,6 +20,14 @@ inline int team_size(int requested, Eigen::Index work, Eigen::Index threshold) {
   return requested > 0 ? requested : omp_get_max_threads();
 }
 
+/// Starts OpenMP's thread team for `threads` threads (libgomp allocates it at the first parallel
+/// region and reuses it afterwards): call during set-up so that the step loop does not allocate.
+inline void start_threads(int threads) {
+  if (threads <= 1) return;
+#pragma omp parallel num_threads(threads)
+  {}
+}
+
 /// body(lo, hi) on contiguous blocks covering [0, n), one per thread.
 template <class Body>
 void for_blocks(Eigen::Index n, int threads, Body&& body) {

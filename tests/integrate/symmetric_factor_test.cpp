@@ -1,0 +1,134 @@
+// The banded (LAPACK) and sparse (Eigen LDLᵀ) factorisations of a step's Newton matrix, against a
+// dense LU of the same matrix; the automatic choice; the LU fallback for indefinite matrices.
+#include "fracvi/integrate/symmetric_factor.hpp"
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <random>
+
+namespace fracvi::internal {
+namespace {
+
+// A pattern from the non-zeros of a dense symmetric matrix, and the factor filled with its values.
+struct Filled {
+  std::shared_ptr<SymmetricPattern> pattern;
+  std::unique_ptr<SymmetricFactor> factor;
+};
+
+std::shared_ptr<SymmetricPattern> pattern_of(const Eigen::MatrixXd& a) {
+  auto p = std::make_shared<SymmetricPattern>(a.rows());
+  p->add(ModelMatrix(Eigen::SparseMatrix<double>(a.sparseView())));
+  p->finalize();
+  return p;
+}
+
+Filled filled(const Eigen::MatrixXd& a, LinearSolver solver) {
+  Filled f{pattern_of(a), nullptr};
+  f.factor = std::make_unique<SymmetricFactor>(f.pattern, solver);
+  std::span<double> v = f.factor->values();
+  for (std::size_t e = 0; e < f.pattern->size(); ++e) {
+    const auto& entry = f.pattern->entries()[e];
+    v[e] = a(entry.row, entry.col);
+  }
+  return f;
+}
+
+// Symmetric banded matrix of bandwidth b with a diagonal shift (shift large: positive definite).
+Eigen::MatrixXd banded(Eigen::Index d, Eigen::Index b, double shift, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(d, d);
+  for (Eigen::Index j = 0; j < d; ++j) {
+    for (Eigen::Index i = std::max<Eigen::Index>(0, j - b); i < j; ++i) a(i, j) = a(j, i) = u(rng);
+    a(j, j) = shift + u(rng);
+  }
+  return a;
+}
+
+double solve_error(SymmetricFactor& f, const Eigen::MatrixXd& a, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> n;
+  Eigen::VectorXd rhs(a.rows());
+  for (auto& r : rhs) r = n(rng);
+  const Eigen::VectorXd reference = a.partialPivLu().solve(rhs);
+  Eigen::VectorXd x = rhs;
+  f.solve_in_place(x);
+  return (x - reference).cwiseAbs().maxCoeff() / reference.cwiseAbs().maxCoeff();
+}
+
+TEST(SymmetricFactor, BandedCholeskyMatchesDenseLu) {
+  for (const Eigen::Index b : {0, 1, 3, 10}) {
+    const Eigen::MatrixXd a = banded(300, b, 2.0 * static_cast<double>(b) + 2.0, 7u);
+    Filled f = filled(a, LinearSolver::kBanded);
+    EXPECT_EQ(f.pattern->bandwidth(), b);
+    ASSERT_TRUE(f.factor->factor());
+    EXPECT_LE(solve_error(*f.factor, a, 3u), 1e-13) << "bandwidth " << b;
+  }
+}
+
+// J = M + (h²/4)∇²U is indefinite when U is concave enough and h large: Cholesky fails, the band
+// LU with pivoting takes over.
+TEST(SymmetricFactor, IndefiniteBandedFallsBackToLu) {
+  const Eigen::MatrixXd a = banded(200, 2, 0.0, 11u);
+  ASSERT_LT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(a).eigenvalues().minCoeff(), 0.0);
+  Filled f = filled(a, LinearSolver::kBanded);
+  ASSERT_TRUE(f.factor->factor());
+  EXPECT_LE(solve_error(*f.factor, a, 5u), 1e-10);
+}
+
+TEST(SymmetricFactor, SingularMatrixIsReported) {
+  Eigen::MatrixXd a = banded(50, 1, 4.0, 2u);
+  a.row(10).setZero();
+  a.col(10).setZero();
+  for (const LinearSolver s : {LinearSolver::kBanded, LinearSolver::kSparse}) {
+    Filled f = filled(a, s);
+    EXPECT_FALSE(f.factor->factor()) << to_string(s);
+  }
+}
+
+// A periodic chain: tridiagonal plus the corners, bandwidth d − 1 — the sparse LDLᵀ's case.
+TEST(SymmetricFactor, SparseLdltSolvesPeriodicChain) {
+  constexpr Eigen::Index kD = 400;
+  Eigen::MatrixXd a = banded(kD, 1, 3.0, 13u);
+  a(0, kD - 1) = a(kD - 1, 0) = -0.9;
+  Filled f = filled(a, LinearSolver::kSparse);
+  ASSERT_TRUE(f.factor->factor());
+  EXPECT_LE(solve_error(*f.factor, a, 17u), 1e-13);
+  EXPECT_EQ(choose_factorization(*f.pattern), LinearSolver::kSparse);
+  // Refactoring with new values on the same pattern (a Newton iteration) gives the new solution.
+  a.diagonal().array() += 1.0;
+  std::span<double> v = f.factor->values();
+  for (std::size_t e = 0; e < f.pattern->size(); ++e) {
+    const auto& entry = f.pattern->entries()[e];
+    v[e] = a(entry.row, entry.col);
+  }
+  ASSERT_TRUE(f.factor->factor());
+  EXPECT_LE(solve_error(*f.factor, a, 19u), 1e-13);
+}
+
+TEST(SymmetricFactor, AutomaticChoiceFollowsTheStructure) {
+  EXPECT_EQ(choose_factorization(*pattern_of(banded(1000, 1, 3.0, 1u))), LinearSolver::kBanded);
+  EXPECT_EQ(choose_factorization(*pattern_of(banded(1000, kMaxAutoBandwidth, 3.0, 1u))),
+            LinearSolver::kBanded);
+  EXPECT_EQ(choose_factorization(*pattern_of(banded(1000, kMaxAutoBandwidth + 1, 3.0, 1u))),
+            LinearSolver::kSparse);
+  EXPECT_EQ(choose_factorization(*pattern_of(banded(40, 30, 3.0, 1u))), LinearSolver::kDense);
+  EXPECT_EQ(choose_factorization(*pattern_of(banded(4, 1, 3.0, 1u))), LinearSolver::kDense);
+}
+
+TEST(SymmetricFactor, PatternIndexAndErrors) {
+  SymmetricPattern p(5);
+  p.add(ModelMatrix::identity(5, 2.0));
+  p.finalize();
+  EXPECT_EQ(p.size(), 5u);
+  EXPECT_EQ(p.index_of(3, 3), 3u);
+  EXPECT_THROW(static_cast<void>(p.index_of(1, 2)), std::out_of_range);
+  EXPECT_THROW(SymmetricFactor(std::make_shared<SymmetricPattern>(p), LinearSolver::kDense),
+               std::invalid_argument);
+  EXPECT_EQ(parse_linear_solver("banded"), LinearSolver::kBanded);
+  EXPECT_FALSE(parse_linear_solver("cholesky").has_value());
+}
+
+}  // namespace
+}  // namespace fracvi::internal
