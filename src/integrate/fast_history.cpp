@@ -65,7 +65,7 @@ FastHistory::FastHistory(std::shared_ptr<const ExponentialFit> fit, Eigen::Index
     decay_(j) = std::exp(-fit_->lambdas[static_cast<std::size_t>(j)]);
     weights_(j) = fit_->weights[static_cast<std::size_t>(j)];
   }
-  state_.setZero(k, dimension);
+  state_.setZero(dimension, k);
   tail_.setZero(dimension);
 }
 
@@ -81,15 +81,32 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
     // x̃_{k−n0} leaves the window (it sits in the slot x̃_k is about to take) and enters every
     // recursion: Y_j ← e^{−λ_j} Y_j + x̃_{k−n0}; then the cached tail Σ_j w_j Y_j.
     const auto leaving = ring_.col(slot);
+    // Y_j is column j of the d × K state, so both updates run along the degrees of freedom
+    // (long contiguous vectors); blocks of kBlock rows keep the tail's block in L1 while the K
+    // columns pass over it.
+    constexpr Eigen::Index kBlock = 256;
+    const Eigen::Index terms = state_.cols(), stride = state_.rows();
     auto recurse = [&](Eigen::Index lo, Eigen::Index hi) {
-      for (Eigen::Index i = lo; i < hi; ++i) {
-        auto y = state_.col(i);
-        y = decay_ * y + leaving(i);
-        tail_(i) = y.matrix().dot(weights_);
+      for (Eigen::Index b = lo; b < hi; b += kBlock) {
+        const Eigen::Index n = std::min(kBlock, hi - b);
+        // Plain loops over restrict pointers: the compiler vectorises them fully (the Eigen
+        // block expressions of the same loop ran at half the speed).
+        double* __restrict tail = tail_.data() + b;
+        const double* __restrict x = leaving.data() + b;
+        for (Eigen::Index i = 0; i < n; ++i) tail[i] = 0.0;
+        for (Eigen::Index j = 0; j < terms; ++j) {
+          double* __restrict y = state_.data() + j * stride + b;
+          const double a = decay_(j), w = weights_(j);
+          for (Eigen::Index i = 0; i < n; ++i) {
+            const double yi = a * y[i] + x[i];
+            y[i] = yi;
+            tail[i] += w * yi;
+          }
+        }
       }
     };
     const Eigen::Index d = ring_.rows();
-    internal::for_blocks(d, internal::team_size(threads_, d * state_.rows(), kParallelWork),
+    internal::for_blocks(d, internal::team_size(threads_, d * state_.cols(), kParallelWork),
                          recurse);
   }
   ring_.col(slot) = x_tilde;
@@ -116,7 +133,7 @@ void FastHistory::set_threads(int threads) {
   threads_ = threads;
   const Eigen::Index d = ring_.rows();
   internal::start_threads(internal::team_size(
-      threads_, d * std::max<Eigen::Index>(state_.rows(), window_), kParallelWork));
+      threads_, d * std::max<Eigen::Index>(state_.cols(), window_), kParallelWork));
 }
 
 void FastHistory::clear() {

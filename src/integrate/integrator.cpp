@@ -227,6 +227,7 @@ struct Integrator::Impl {
     if (use_history) {
       history = make_history(options.history, order, d, n_steps + 1, options.history_tolerance);
       history->set_threads(options.threads);
+      sol.history_bytes = history->memory_bytes();
     }
     const auto rows = static_cast<Eigen::Index>(stored_rows(n_steps, options.save_every));
     sol.t = Eigen::VectorXd::Constant(rows, kNaN);

@@ -1,5 +1,6 @@
 #include "fracvi/model/chain_potential.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -66,6 +67,17 @@ Neighbours neighbours(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Index i
   return n;
 }
 
+// Runs edge(i) for the end masses 0 and d − 1 and interior(i) for 0 < i < d − 1 within [lo, hi):
+// the interior loop has no boundary branches, so the compiler vectorises it.
+template <class Edge, class Interior>
+void by_position(Eigen::Index lo, Eigen::Index hi, Eigen::Index d, Edge&& edge,
+                 Interior&& interior) {
+  const Eigen::Index first = std::max<Eigen::Index>(lo, 1), last = std::min(hi, d - 1);
+  if (lo == 0) edge(Eigen::Index{0});
+  for (Eigen::Index i = first; i < last; ++i) interior(i);
+  if (hi == d && d > 1) edge(d - 1);
+}
+
 int chain_threads(const ChainOptions& o) {
   return internal::team_size(o.threads, o.dimension, kChainParallelDofs);
 }
@@ -106,13 +118,16 @@ double ChainPotential::value(const Eigen::Ref<const Eigen::VectorXd>& x, double)
   // Each bond once, as the right bond of its left mass (the fixed chain adds the left wall bond).
   return internal::sum_blocks(d, chain_threads(options_), [&](Eigen::Index lo, Eigen::Index hi) {
     double total = 0.0;
-    for (Eigen::Index i = lo; i < hi; ++i) {
-      const Neighbours n = neighbours(x, i, d, boundary);
-      double e = 0.5 * c * x[i] * x[i];
-      if (n.has_right) e += v.energy(n.right - x[i]);
-      if (i == 0 && boundary == ChainBoundary::kFixed) e += v.energy(x[0]);
-      total += e;
-    }
+    by_position(
+        lo, hi, d,
+        [&](Eigen::Index i) {
+          const Neighbours n = neighbours(x, i, d, boundary);
+          double e = 0.5 * c * x[i] * x[i];
+          if (n.has_right) e += v.energy(n.right - x[i]);
+          if (i == 0 && boundary == ChainBoundary::kFixed) e += v.energy(x[0]);
+          total += e;
+        },
+        [&](Eigen::Index i) { total += 0.5 * c * x[i] * x[i] + v.energy(x[i + 1] - x[i]); });
     return total;
   });
 }
@@ -124,13 +139,18 @@ void ChainPotential::gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double
   const ChainBoundary boundary = options_.boundary;
   const double c = options_.onsite;
   internal::for_blocks(d, chain_threads(options_), [&](Eigen::Index lo, Eigen::Index hi) {
-    for (Eigen::Index i = lo; i < hi; ++i) {
-      const Neighbours n = neighbours(x, i, d, boundary);
-      double gi = c * x[i];
-      if (n.has_left) gi += v.force(x[i] - n.left);
-      if (n.has_right) gi -= v.force(n.right - x[i]);
-      g[i] = gi;
-    }
+    by_position(
+        lo, hi, d,
+        [&](Eigen::Index i) {
+          const Neighbours n = neighbours(x, i, d, boundary);
+          double gi = c * x[i];
+          if (n.has_left) gi += v.force(x[i] - n.left);
+          if (n.has_right) gi -= v.force(n.right - x[i]);
+          g[i] = gi;
+        },
+        [&](Eigen::Index i) {
+          g[i] = c * x[i] + v.force(x[i] - x[i - 1]) - v.force(x[i + 1] - x[i]);
+        });
   });
 }
 
@@ -153,14 +173,21 @@ void ChainPotential::hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, 
   double* diagonal = values.data();
   double* upper = values.data() + d;  // (i, i+1)
   internal::for_blocks(d, chain_threads(options_), [&](Eigen::Index lo, Eigen::Index hi) {
-    for (Eigen::Index i = lo; i < hi; ++i) {
-      const Neighbours n = neighbours(x, i, d, boundary);
-      double hii = c;
-      if (n.has_left) hii += v.stiffness(x[i] - n.left);
-      if (n.has_right) hii += v.stiffness(n.right - x[i]);
-      diagonal[i] = hii;
-      if (i + 1 < d) upper[i] = -v.stiffness(x[i + 1] - x[i]);
-    }
+    by_position(
+        lo, hi, d,
+        [&](Eigen::Index i) {
+          const Neighbours n = neighbours(x, i, d, boundary);
+          double hii = c;
+          if (n.has_left) hii += v.stiffness(x[i] - n.left);
+          if (n.has_right) hii += v.stiffness(n.right - x[i]);
+          diagonal[i] = hii;
+          if (i + 1 < d) upper[i] = -v.stiffness(x[i + 1] - x[i]);
+        },
+        [&](Eigen::Index i) {
+          const double right = v.stiffness(x[i + 1] - x[i]);
+          diagonal[i] = c + v.stiffness(x[i] - x[i - 1]) + right;
+          upper[i] = -right;
+        });
   });
   if (boundary == ChainBoundary::kPeriodic)
     values[static_cast<std::size_t>(2 * d - 1)] = -v.stiffness(x[0] - x[d - 1]);

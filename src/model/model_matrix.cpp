@@ -7,6 +7,12 @@
 
 namespace fracvi {
 
+void ModelMatrix::cache_diagonal() {
+  diagonal_.resize(0);
+  if (sparse_.rows() != sparse_.cols() || !is_diagonal()) return;
+  diagonal_ = sparse_.diagonal();
+}
+
 ModelMatrix ModelMatrix::identity(Eigen::Index dimension, double value) {
   return diagonal(Eigen::VectorXd::Constant(dimension, value));
 }
@@ -106,7 +112,9 @@ ModelMatrix ModelMatrix::symmetric_part() const {
 
 void ModelMatrix::multiply(const Eigen::Ref<const Eigen::VectorXd>& x,
                            Eigen::Ref<Eigen::VectorXd> y) const {
-  if (is_sparse_) {
+  if (diagonal_.size() > 0) {
+    y.array() = diagonal_.array() * x.array();
+  } else if (is_sparse_) {
     y.noalias() = sparse_ * x;
   } else {
     y.noalias() = dense_ * x;

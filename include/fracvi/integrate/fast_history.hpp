@@ -48,6 +48,11 @@ class FastHistory final : public History {
   void clear() override;
   [[nodiscard]] std::size_t size() const override { return size_; }
   [[nodiscard]] std::size_t capacity() const override { return capacity_; }
+  [[nodiscard]] std::size_t memory_bytes() const override {
+    return static_cast<std::size_t>(ring_.size() + state_.size() + tail_.size() +
+                                    head_reversed_.size() + decay_.size() + weights_.size()) *
+           sizeof(double);
+  }
   [[nodiscard]] Eigen::Index dimension() const override { return ring_.rows(); }
   [[nodiscard]] double order() const override { return fit_->order; }
   /// OpenMP threads for push() and sum() (0 = OpenMP's default). They split the degrees of
@@ -69,7 +74,7 @@ class FastHistory final : public History {
   Eigen::MatrixXd ring_;           // d × 2n0; x̃_j in columns j mod n0 and j mod n0 + n0
   Eigen::ArrayXd decay_;           // e^{−λ_j}
   Eigen::VectorXd weights_;        // w_j
-  Eigen::ArrayXXd state_;          // K × d; column i holds Y_1 … Y_K of degree of freedom i
+  Eigen::ArrayXXd state_;          // d × K; column j holds Y_j (all degrees of freedom)
   Eigen::VectorXd tail_;           // Σ_j w_j Y_j (d), updated by push()
   std::size_t size_ = 0;
   int threads_ = 0;

@@ -45,6 +45,9 @@ class History {
   [[nodiscard]] virtual Eigen::Index dimension() const = 0;
   /// The order 2α of the weights (1 − ζ)^{2α}.
   [[nodiscard]] virtual double order() const = 0;
+  /// Bytes of state this history keeps (values, weights, recursions): N·d·8 for the direct sum,
+  /// (K + 2n0 + 1)·d·8 plus the weights for the fast one.
+  [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
   /// Threads for the work over degrees of freedom (0 = OpenMP's default). Only the fast history
   /// has enough work per step to use them; the others ignore it.
   virtual void set_threads(int threads) { static_cast<void>(threads); }
@@ -61,6 +64,9 @@ class DirectHistory final : public History {
   void clear() override { size_ = 0; }
   [[nodiscard]] std::size_t size() const override { return size_; }
   [[nodiscard]] std::size_t capacity() const override { return weights_.size(); }
+  [[nodiscard]] std::size_t memory_bytes() const override {
+    return (weights_.size() + values_.size()) * sizeof(double);
+  }
   [[nodiscard]] Eigen::Index dimension() const override { return dimension_; }
   [[nodiscard]] double order() const override { return order_; }
   [[nodiscard]] const std::vector<double>& weights() const { return weights_; }
@@ -85,6 +91,9 @@ class LocalHistory final : public History {
   void clear() override { size_ = 0; }
   [[nodiscard]] std::size_t size() const override { return size_; }
   [[nodiscard]] std::size_t capacity() const override;
+  [[nodiscard]] std::size_t memory_bytes() const override {
+    return static_cast<std::size_t>(window_.size()) * sizeof(double);
+  }
   [[nodiscard]] Eigen::Index dimension() const override { return window_.rows(); }
   [[nodiscard]] double order() const override { return static_cast<double>(width_ - 1); }
 

@@ -59,8 +59,9 @@ struct Solution {
   std::size_t steps_done = 0;         ///< completed steps; rows 0 … steps_done are valid
   std::size_t newton_iterations = 0;  ///< total over all steps (1 per step for linear problems)
   std::size_t max_newton_iterations_per_step = 0;
-  std::size_t save_every = 1;  ///< IntegratorOptions::save_every of the run
-  std::string linear_solver;   ///< factorisation used: "dense", "banded" or "sparse"
+  std::size_t save_every = 1;     ///< IntegratorOptions::save_every of the run
+  std::string linear_solver;      ///< factorisation used: "dense", "banded" or "sparse"
+  std::size_t history_bytes = 0;  ///< memory of the damping history (History::memory_bytes)
 
   /// max_k ‖y_k − x_{N−k}‖_∞ from the independent backward run of the mirror equation
   /// (`DiscEqs`, second line); NaN if not computed (disabled, or the run did not succeed).

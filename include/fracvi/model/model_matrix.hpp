@@ -34,6 +34,7 @@ class ModelMatrix {
       const Eigen::SparseMatrixBase<Derived>& sparse)  // NOLINT(google-explicit-constructor)
       : sparse_(sparse), is_sparse_(true) {
     sparse_.makeCompressed();
+    cache_diagonal();
   }
 
   /// A diagonal expression (`v.asDiagonal()`), stored sparse.
@@ -85,8 +86,13 @@ class ModelMatrix {
   void multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const;
 
  private:
+  // A sparse matrix with only diagonal entries multiplies as a vector product (vectorised, no
+  // zeroing pass): diagonal_ holds them, empty otherwise.
+  void cache_diagonal();
+
   Eigen::MatrixXd dense_;
   Sparse sparse_;
+  Eigen::VectorXd diagonal_;
   bool is_sparse_ = false;
 };
 
