@@ -67,6 +67,7 @@ FastHistory::FastHistory(std::shared_ptr<const ExponentialFit> fit, Eigen::Index
   }
   state_.setZero(dimension, k);
   tail_.setZero(dimension);
+  sum_.setZero(dimension);
 }
 
 FastHistory::FastHistory(double order, Eigen::Index dimension, std::size_t capacity,
@@ -77,18 +78,25 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   assert(size_ < capacity_ && x_tilde.size() == ring_.rows());
   const auto n0 = static_cast<std::size_t>(window_);
   const auto slot = static_cast<Eigen::Index>(size_ % n0);
-  if (size_ >= n0) {
-    // x̃_{k−n0} leaves the window (it sits in the slot x̃_k is about to take) and enters every
-    // recursion: Y_j ← e^{−λ_j} Y_j + x̃_{k−n0}; then the cached tail Σ_j w_j Y_j.
-    const auto leaving = ring_.col(slot);
-    // Y_j is column j of the d × K state, so both updates run along the degrees of freedom
-    // (long contiguous vectors); blocks of kBlock rows keep the tail's block in L1 while the K
-    // columns pass over it.
-    constexpr Eigen::Index kBlock = 256;
-    const Eigen::Index terms = state_.cols(), stride = state_.rows();
-    auto recurse = [&](Eigen::Index lo, Eigen::Index hi) {
-      for (Eigen::Index b = lo; b < hi; b += kBlock) {
-        const Eigen::Index n = std::min(kBlock, hi - b);
+  const bool recurse = size_ >= n0;
+  // After the push the last n0 values x̃_{k−n0+1} … x̃_k are the ring columns first … first + n0 − 1
+  // with first = (k + 1) mod n0; before k = n0 − 1 the missing ones are the zeros the ring was
+  // cleared to.
+  const auto first = static_cast<Eigen::Index>((size_ + 1) % n0);
+  const auto leaving = ring_.col(slot);
+  const Eigen::Index terms = state_.cols(), stride = state_.rows();
+  // One pass per block of degrees of freedom, all in one parallel region (each region costs a
+  // barrier): (1) x̃_{k−n0} leaves the window (it sits in the slot x̃_k is about to take) and enters
+  // every recursion, Y_j ← e^{−λ_j} Y_j + x̃_{k−n0}, and the tail Σ_j w_j Y_j is formed; (2) x̃_k
+  // enters the ring; (3) the sum = window · exact weights + tail, returned by sum().
+  // Y_j is column j of the d × K state, so the recursions run along the degrees of freedom (long
+  // contiguous vectors); blocks of kBlock rows keep the tail's block in L1 while the K columns pass
+  // over it.
+  constexpr Eigen::Index kBlock = 256;
+  auto update = [&](Eigen::Index lo, Eigen::Index hi) {
+    for (Eigen::Index b = lo; b < hi; b += kBlock) {
+      const Eigen::Index n = std::min(kBlock, hi - b);
+      if (recurse) {
         // Plain loops over restrict pointers: the compiler vectorises them fully (the Eigen
         // block expressions of the same loop ran at half the speed).
         double* __restrict tail = tail_.data() + b;
@@ -104,43 +112,42 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
           }
         }
       }
-    };
-    const Eigen::Index d = ring_.rows();
-    internal::for_blocks(d, internal::team_size(threads_, d * state_.cols(), kParallelWork),
-                         recurse);
-  }
-  ring_.col(slot) = x_tilde;
-  ring_.col(slot + window_) = x_tilde;
+      ring_.col(slot).segment(b, n) = x_tilde.segment(b, n);
+      ring_.col(slot + window_).segment(b, n) = x_tilde.segment(b, n);
+      sum_.segment(b, n).noalias() = ring_.block(b, first, n, window_) * head_reversed_;
+      sum_.segment(b, n) += tail_.segment(b, n);
+    }
+  };
+  const Eigen::Index d = ring_.rows();
+  internal::for_blocks(d, internal::team_size(threads_, d * (terms + window_), kParallelWork),
+                       update);
   ++size_;
 }
 
 void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
   assert(size_ >= 1 && out.size() == ring_.rows());
-  // The last n0 values x̃_{k−n0+1} … x̃_k are columns r … r + n0 − 1 with r = (k + 1) mod n0;
-  // before k = n0 − 1 the missing ones are the zeros the ring was cleared to.
-  const auto first = static_cast<Eigen::Index>(size_ % static_cast<std::size_t>(window_));
-  const Eigen::Index d = ring_.rows();
-  // Split by degree of freedom: each block of rows is its own matrix–vector product.
-  internal::for_blocks(d, internal::team_size(threads_, d * window_, kParallelWork),
-                       [&](Eigen::Index lo, Eigen::Index hi) {
-                         out.segment(lo, hi - lo).noalias() =
-                             ring_.block(lo, first, hi - lo, window_) * head_reversed_;
-                         out.segment(lo, hi - lo) += tail_.segment(lo, hi - lo);
-                       });
+  out = sum_;  // formed by push()
 }
 
 void FastHistory::set_threads(int threads) {
   threads_ = threads;
   const Eigen::Index d = ring_.rows();
-  internal::start_threads(internal::team_size(
-      threads_, d * std::max<Eigen::Index>(state_.cols(), window_), kParallelWork));
+  internal::start_threads(
+      internal::team_size(threads_, d * (state_.cols() + window_), kParallelWork));
 }
 
 void FastHistory::clear() {
   ring_.setZero();
   state_.setZero();
   tail_.setZero();
+  sum_.setZero();
   size_ = 0;
+}
+
+bool fast_history_pays(std::size_t capacity, Eigen::Index dimension) {
+  if (capacity >= kFastHistoryCrossover) return true;
+  const auto n = static_cast<double>(capacity), d = static_cast<double>(dimension);
+  return 0.5 * n * n * d > 100.0 * n * d + 2e7;
 }
 
 std::unique_ptr<History> make_fast_history(double order, Eigen::Index dimension,

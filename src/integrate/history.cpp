@@ -109,7 +109,7 @@ std::unique_ptr<History> make_history(HistoryKind kind, double order, Eigen::Ind
     return std::make_unique<LocalHistory>(order, dimension);
   }
   if (kind == HistoryKind::kFast ||
-      (kind == HistoryKind::kAuto && capacity >= kFastHistoryCrossover)) {
+      (kind == HistoryKind::kAuto && fast_history_pays(capacity, dimension))) {
     return make_fast_history(order, dimension, capacity, tolerance);
   }
   return std::make_unique<DirectHistory>(order, dimension, capacity);

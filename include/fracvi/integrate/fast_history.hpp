@@ -13,10 +13,10 @@
 // recursions keep at the level of the direct sum since λ_j > 0 and the weights hardly cancel:
 // ExponentialFit::cancellation, measured 1–3).
 //
-// push() does the recursions and caches the tail Σ_j w_j Y_j (one pass over the K × d state);
-// sum() adds the window as one d × n0 matrix–vector product. The ring stores every value twice
-// (columns p and p + n0) so that the last n0 values are always n0 contiguous columns. Neither
-// allocates nor throws; all storage is sized at construction.
+// push() does the recursions, the tail Σ_j w_j Y_j and the window's d × n0 matrix–vector product
+// in one pass over the d × K state (one parallel region per step); sum() returns the result. The
+// ring stores every value twice (columns p and p + n0) so that the last n0 values are always n0
+// contiguous columns. Neither allocates nor throws; all storage is sized at construction.
 #pragma once
 
 #include <Eigen/Dense>
@@ -49,7 +49,7 @@ class FastHistory final : public History {
   [[nodiscard]] std::size_t size() const override { return size_; }
   [[nodiscard]] std::size_t capacity() const override { return capacity_; }
   [[nodiscard]] std::size_t memory_bytes() const override {
-    return static_cast<std::size_t>(ring_.size() + state_.size() + tail_.size() +
+    return static_cast<std::size_t>(ring_.size() + state_.size() + tail_.size() + sum_.size() +
                                     head_reversed_.size() + decay_.size() + weights_.size()) *
            sizeof(double);
   }
@@ -76,11 +76,12 @@ class FastHistory final : public History {
   Eigen::VectorXd weights_;        // w_j
   Eigen::ArrayXXd state_;          // d × K; column j holds Y_j (all degrees of freedom)
   Eigen::VectorXd tail_;           // Σ_j w_j Y_j (d), updated by push()
+  Eigen::VectorXd sum_;            // the whole sum after the last push (d)
   std::size_t size_ = 0;
   int threads_ = 0;
 };
 
-/// Multiply–adds per step (K·d for the recursions, n0·d for the window) from which FastHistory
+/// Multiply–adds per step ((K + n0)·d: the recursions and the window) from which FastHistory
 /// splits the degrees of freedom over threads.
 inline constexpr Eigen::Index kParallelWork = 32768;
 
@@ -103,5 +104,13 @@ std::unique_ptr<History> make_fast_history(double order, Eigen::Index dimension,
 /// against a direct sum written as one gemv; below it a direct run takes ≲ 30 ms and is exact to
 /// round-off. (With the fit cached the crossover is 20–200 steps.)
 inline constexpr std::size_t kFastHistoryCrossover = 4096;
+
+/// HistoryKind::kAuto's choice for a non-integer order: FastHistory from kFastHistoryCrossover
+/// steps whatever d, and earlier for large d, when the estimated direct run (N²·d/2 multiply–adds)
+/// costs more than the fast one (≈ 100·N·d multiply–adds for K ≈ 45 recursions plus the window,
+/// plus ≈ 2·10^7 for one fit of ≈ 10 ms). That model reproduces the measured crossover at d = 100
+/// (N ≈ 400–800, fit included) and sends a 20 000-degree-of-freedom run of 1000 steps (160 MB and
+/// 50 s with the direct sum) to the fast history.
+bool fast_history_pays(std::size_t capacity, Eigen::Index dimension);
 
 }  // namespace fracvi

@@ -41,7 +41,9 @@ struct ChainOptions {
 };
 
 /// Degrees of freedom from which the chain's loops run on several threads.
-inline constexpr Eigen::Index kChainParallelDofs = 16384;
+/// A gradient or Hessian costs ~10 flops per degree of freedom, so a parallel region (a barrier,
+/// and on a busy machine a wait for a time slice) only pays for very long chains.
+inline constexpr Eigen::Index kChainParallelDofs = 65536;
 
 class ChainPotential final : public Potential {
  public:
