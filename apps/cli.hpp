@@ -28,17 +28,28 @@ inline std::string format_number(double v) {
 }
 
 /// Row `row` of a row-major matrix as "[a, b, …]" with 10 significant digits (human summaries).
+/// Rows longer than 8 entries show the first and last three: "[a, b, c, ..., x, y, z] (100000
+/// entries)"; the files have all of them.
 inline std::string row_text(
     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>&
         m,
     Eigen::Index row) {
+  constexpr Eigen::Index kShown = 8, kEnds = 3;
+  const Eigen::Index n = m.cols();
   std::string s = "[";
-  for (Eigen::Index j = 0; j < m.cols(); ++j) {
+  for (Eigen::Index j = 0; j < n; ++j) {
+    if (n > kShown && j == kEnds) {
+      s += ", ...";
+      j = n - kEnds - 1;
+      continue;
+    }
     char buf[32];
     std::snprintf(buf, sizeof buf, "%s%.10g", j ? ", " : "", m(row, j));
     s += buf;
   }
-  return s + "]";
+  s += "]";
+  if (n > kShown) s += " (" + std::to_string(n) + " entries)";
+  return s;
 }
 
 /// Each command registers itself on the app and returns the function that runs it.

@@ -6,8 +6,9 @@
 
 namespace fracvi::cli {
 
-/// Draws trajectory.png, phase.png and energy.png into `dir`. Returns "" on success, otherwise a
-/// one-line note saying why there are no plots (the data files are written regardless).
+/// Draws trajectory.png, phase.png and energy.png (and spacetime.png for d > 8) into `dir`.
+/// Returns "" on success, otherwise a one-line note saying why there are no plots (the data files
+/// are written regardless).
 std::string draw_plots(const std::filesystem::path& dir, bool quiet);
 
 /// Draws convergence.png (log-log error against h) from convergence.csv in `dir`; "" or a note.

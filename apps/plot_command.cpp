@@ -13,8 +13,9 @@ Command add_plot_command(CLI::App& parent) {
   auto dir = std::make_shared<std::string>();
   CLI::App* app = parent.add_subcommand(
       "plot",
-      "Redraw the plots of an output directory: trajectory.png, phase.png and energy.png from "
-      "trajectory.csv and summary.json (fracvi run), or convergence.png from convergence.csv "
+      "Redraw the plots of an output directory: trajectory.png, phase.png and energy.png (and "
+      "spacetime.png for d > 8) from trajectory.csv and summary.json (fracvi run), or "
+      "convergence.png from convergence.csv "
       "(fracvi convergence). Uses matplotlib through Debian's /usr/bin/python3.");
   app->add_option("directory", *dir, "output directory of fracvi run or fracvi convergence")
       ->required();
@@ -34,7 +35,10 @@ Command add_plot_command(CLI::App& parent) {
       std::fprintf(stderr, "fracvi plot: %s\n", note.c_str());
       return kExitNumericalFailure;
     }
-    std::printf("%s\n", is_run ? (d / "{trajectory,phase,energy}.png").string().c_str()
+    const char* run_plots = std::filesystem::exists(d / "spacetime.png")
+                                ? "{trajectory,phase,energy,spacetime}.png"
+                                : "{trajectory,phase,energy}.png";
+    std::printf("%s\n", is_run ? (d / run_plots).string().c_str()
                                : (d / "convergence.png").string().c_str());
     return kExitSuccess;
   };

@@ -73,7 +73,7 @@ Command add_run_command(CLI::App& parent) {
     if (!opt->no_plot) plot_note = draw_plots(dir, opt->quiet);
 
     if (!opt->quiet) {
-      const Eigen::Index last = static_cast<Eigen::Index>(solution.steps_done);
+      const Eigen::Index last = solution.t.size() - 1;  // the last stored row
       std::printf("fracvi run: %s  (d = %lld, alpha = %g, damping order %g, %s, scheme %s)\n",
                   spec.name.c_str(), static_cast<long long>(spec.dim), spec.alpha, 2 * spec.alpha,
                   spec.convention.c_str(), solution.method.c_str());
@@ -95,8 +95,12 @@ Command add_run_command(CLI::App& parent) {
         std::printf("  reference error   max |x_k - x_ref(t_k)| = %.3e\n",
                     max_error(solution, parse_reference(spec.reference)));
       }
-      std::printf("  newton            %zu iterations (max %zu per step)\n",
-                  solution.newton_iterations, solution.max_newton_iterations_per_step);
+      std::printf("  newton            %zu iterations (max %zu per step), %s linear solver\n",
+                  solution.newton_iterations, solution.max_newton_iterations_per_step,
+                  solution.linear_solver.c_str());
+      std::printf("  stored            %lld of %zu states (save_every %zu)\n",
+                  static_cast<long long>(solution.t.size()), solution.steps_done + 1,
+                  solution.save_every);
       std::printf("  wall time         %.3f s\n", solution.wall_time_seconds);
       std::printf("  output            %s/{trajectory.csv,summary.json,problem.toml%s}\n",
                   dir.string().c_str(), plot_note.empty() ? ",*.png" : "");

@@ -94,6 +94,7 @@ def _schema():
     owner.setdefault("damping_order", []).append("model")
     owner.setdefault("step", []).append("time")
     owner.setdefault("lagrangian", []).append("model")
+    owner.setdefault("chain", []).append("model")
     # Keys that exist in more than one section have no flat form.
     return sections, {k: v[0] for k, v in owner.items() if len(v) == 1}
 
@@ -109,7 +110,8 @@ class Problem:
     * keywords: Problem(name="osc", model=dict(dim=1, mass=1.0, potential="x1^2/2", ...),
       initial=dict(position=[1.0]), time=dict(end=10.0, steps=1000)); any key may also be given
       flat when its name is unique, e.g. Problem(dim=1, mass=1.0, potential="x1^2/2",
-      alpha=0.5, position=[1.0], end=10.0, steps=1000);
+      alpha=0.5, position=[1.0], end=10.0, steps=1000), or for the built-in FPUT chain
+      Problem(dim=100000, mass=1.0, chain=dict(quartic=1.0), position="sin(pi*i/(d+1))", ...);
     * Problem.from_dict(d): the nested dict of a problem file (e.g. tomllib.load);
     * Problem.from_toml(path or text), Problem.default() (the built-in problem of `fracvi run`).
 
@@ -184,8 +186,10 @@ class Problem:
         return Problem.from_dict(self.to_dict(), source=self.source, overrides=assignments)
 
     def to_dict(self):
-        """The fully resolved problem (every default filled in, matrices expanded) as nested
-        dicts: the "problem" entry of summary.json. Problem.from_dict(p.to_dict()) == p."""
+        """The fully resolved problem (every default filled in) as nested dicts: the "problem"
+        entry of summary.json. Matrices in their compact form (one number for m·I, d numbers for
+        a diagonal, d rows for a full matrix); initial data given as formulas stay formulas.
+        Problem.from_dict(p.to_dict()) == p."""
         return self._spec.to_dict()
 
     def to_toml(self):
@@ -199,7 +203,7 @@ class Problem:
 
     def __repr__(self):
         model = (f"lagrangian={self.lagrangian!r}" if self.lagrangian else
-                 f"potential={self.potential!r}")
+                 f"chain={self.chain!r}" if self.chain else f"potential={self.potential!r}")
         return (f"Problem(name={self.name!r}, dim={self.dim}, alpha={self.alpha:g}, "
                 f"convention={self.convention!r}, {model}, t=[{self.start:g}, {self.end:g}], "
                 f"steps={self.steps})")
@@ -208,8 +212,14 @@ class Problem:
     source = property(lambda self: self._spec.source, doc="file name or label used in messages")
     name = property(lambda self: self._spec.name)
     dim = property(lambda self: self._spec.dim, doc="d")
-    mass = property(lambda self: self._spec.mass, doc="M (d × d)")
-    damping = property(lambda self: self._spec.damping, doc="R (d × d)")
+    mass = property(lambda self: self._spec.mass,
+                    doc="M (d × d): a NumPy array when given as d rows (dense), a "
+                        "scipy.sparse.csc_matrix when given as a number or d numbers (stored "
+                        "sparse, a diagonal; never expanded)")
+    damping = property(lambda self: self._spec.damping, doc="R (d × d), stored like mass")
+    chain = property(lambda self: self._spec.chain,
+                     doc="the built-in FPUT chain of [model.chain] as a dict (stiffness, cubic, "
+                         "quartic, onsite, boundary), or None (potential is a formula)")
     alpha = property(lambda self: self._spec.alpha, doc="Lagrangian order α ∈ [0, 1]")
     damping_order = property(lambda self: 2.0 * self._spec.alpha, doc="2α")
     convention = property(lambda self: self._spec.convention)
@@ -226,7 +236,13 @@ class Problem:
     scheme = property(lambda self: self._spec.scheme)
     newton_tolerance = property(lambda self: self._spec.newton_tolerance)
     newton_max_iterations = property(lambda self: self._spec.newton_max_iterations)
-    every = property(lambda self: self._spec.every, doc="output.every (trajectory.csv rows)")
+    history = property(lambda self: self._spec.history, doc='"auto", "direct" or "fast"')
+    history_tolerance = property(lambda self: self._spec.history_tolerance)
+    linear_solver = property(lambda self: self._spec.linear_solver,
+                             doc='method.linear_solver: "auto", "dense", "banded" or "sparse"')
+    threads = property(lambda self: self._spec.threads, doc="method.threads (0: all cores)")
+    every = property(lambda self: self._spec.every,
+                     doc="output.every: the solution stores every n-th state and the last")
 
 
 def _as_problem(problem):
@@ -251,8 +267,10 @@ class Solution:
     """The result of integrate(): grid, states, diagnostics, statistics and a status.
 
     t, x, v, energy, dissipated and balance are read-only NumPy arrays that view the C++ storage
-    (no copy; an array keeps the storage alive). x and v have shape (steps + 1, d), row k is the
-    state at t[k]. If the run failed, they hold the rows computed before the failure.
+    (no copy; an array keeps the storage alive). x and v have one row per stored state, row r is
+    the state at t[r], the step step[r]: with the problem's output.every = n (save_every) every
+    n-th step and always the last, so (steps + 1, d) for n = 1. If the run failed, they hold the
+    rows computed before the failure.
 
     energy[k] = ½ v_kᵀ M v_k + U(x_k, t_k); dissipated[k] = W_k, the work removed by damping minus
     the work of f; balance[k] = E_k + W_k − E_0 (zero to round-off for quadratic,
@@ -265,9 +283,10 @@ class Solution:
         self._run = run
         self.problem = problem
 
-    t = _view("t", "t_k, shape (steps + 1,)")
-    x = _view("x", "positions x_k, shape (steps + 1, d), C-contiguous")
-    v = _view("v", "velocities v_k = M⁻¹ p_k, shape (steps + 1, d), C-contiguous")
+    t = _view("t", "t_k of the stored states, shape (rows,)")
+    step = _view("step", "the step index k of each stored row (int64), shape (rows,)")
+    x = _view("x", "positions x_k, shape (rows, d), C-contiguous")
+    v = _view("v", "velocities v_k = M⁻¹ p_k, shape (rows, d), C-contiguous")
     energy = _view("energy", "E_k (NaN with diagnostics=False)")
     dissipated = _view("dissipated", "W_k (NaN with diagnostics=False)")
     balance = _view("balance", "E_k + W_k − E_0 (NaN with diagnostics=False)")
@@ -282,6 +301,9 @@ class Solution:
     max_balance_error = _view("max_balance_error", "max_k |balance[k]|")
     wall_time = _view("wall_time", "seconds (forward plus mirror run)")
     method = _view("method", 'the scheme, e.g. "fvi-gl"')
+    linear_solver = _view("linear_solver",
+                          'factorisation of the Newton matrix used: "dense", "banded" or "sparse"')
+    save_every = _view("save_every", "the storage stride of the run (the problem's output.every)")
     declared_order = _view("declared_order", "the order the scheme is designed to reach")
 
     @property
@@ -310,13 +332,15 @@ class Solution:
 
 
 def integrate(problem, *, scheme=None, newton_tolerance=None, newton_max_iterations=None,
-              newton_absolute_tolerance=0.0, mirror=True, diagnostics=True, history=None,
-              start="legendre", raise_on_failure=False):
+              linear_solver=None, threads=None, newton_absolute_tolerance=0.0, mirror=True,
+              diagnostics=True, history=None, start="legendre", raise_on_failure=False):
     """Integrates `problem` (a Problem, a dict, or a TOML path/text) to its final time.
 
-    scheme, newton_tolerance (relative) and newton_max_iterations override the problem's [method]
-    section (None: keep it) and are validated, and recorded in summary(), like the problem's own
-    values. The rest are run options: newton_absolute_tolerance, mirror (run the backward mirror
+    scheme, newton_tolerance (relative), newton_max_iterations, linear_solver ("auto", "dense",
+    "banded", "sparse") and threads (0: all cores) override the problem's [method] section (None:
+    keep it) and are validated, and recorded in summary(), like the problem's own values. The
+    problem's output.every is the storage stride (only every n-th state and the last are kept).
+    The rest are run options: newton_absolute_tolerance, mirror (run the backward mirror
     equation and report mirror_error; doubles the cost), diagnostics (energy, dissipated, balance
     columns), history (the memory sum's implementation: None keeps the problem's [method]
     history, else "auto", "direct" or "fast"), start ("legendre": the discrete Legendre
@@ -328,7 +352,9 @@ def integrate(problem, *, scheme=None, newton_tolerance=None, newton_max_iterati
     """
     problem = _as_problem(problem)
     method = {k: v for k, v in (("scheme", scheme), ("newton_tolerance", newton_tolerance),
-                                ("newton_max_iterations", newton_max_iterations)) if v is not None}
+                                ("newton_max_iterations", newton_max_iterations),
+                                ("linear_solver", linear_solver), ("threads", threads))
+              if v is not None}
     if method:
         document = problem.to_dict()
         document.setdefault("method", {}).update(method)
@@ -343,11 +369,12 @@ def integrate(problem, *, scheme=None, newton_tolerance=None, newton_max_iterati
 
 def write(solution, problem=None, directory=None, *, plot=False):
     """Writes the files of `fracvi run` — trajectory.csv, summary.json, problem.toml — into
-    `directory` (created if needed); with plot=True also trajectory.png, phase.png, energy.png.
+    `directory` (created if needed); with plot=True also its plots (fracvi.plot).
 
     Call as write(solution, problem, directory) or write(solution, directory); the problem
     defaults to the one the solution was computed from (it is recorded in summary.json and
-    problem.toml, and its output.every thins trajectory.csv). Returns the directory.
+    problem.toml). trajectory.csv has one line per stored row of the solution (the run already
+    kept only every output.every-th state). Returns the directory.
     """
     if directory is None and isinstance(problem, (str, os.PathLike)):
         problem, directory = None, problem
@@ -365,13 +392,15 @@ def write(solution, problem=None, directory=None, *, plot=False):
 
 
 def plot(solution, directory=None, *, show=None):
-    """The three plots of `fracvi run`: trajectory, phase portrait (first component) and energy
-    balance.
+    """The plots of `fracvi run`: trajectory, phase portrait and energy balance, and for d > 8 a
+    space-time image of x_i(t) (large systems: a few coordinates are drawn, the phase portrait
+    is that of the largest excursion).
 
     solution: a Solution, or the directory of a finished run (trajectory.csv + summary.json).
-    With a directory, writes trajectory.png, phase.png and energy.png (800 × 500 px) there and
-    returns their paths; nothing is shown unless show=True. Without one, the figures are created
-    with pyplot, shown (show=None or True; set show=False to only get them) and returned.
+    With a directory, writes trajectory.png, phase.png, energy.png (and spacetime.png for
+    d > 8; 800 × 500 px) there and returns their paths; nothing is shown unless show=True.
+    Without one, the figures are created with pyplot, shown (show=None or True; set show=False to
+    only get them) and returned.
     """
     if isinstance(solution, (str, os.PathLike)):
         data, summary = _plotting.load(os.fspath(solution))

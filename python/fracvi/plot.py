@@ -1,9 +1,15 @@
-"""Plots of a fracvi run: trajectory, phase portrait, energy balance.
+"""Plots of a fracvi run: trajectory, phase portrait, energy balance, and for large systems a
+space-time image.
 
 Used by `fracvi run` / `fracvi plot DIR` (as a script, with Debian's /usr/bin/python3 and
 matplotlib) and by the Python package (fracvi.plot, which also plots a Solution object). As a
 script it reads DIR/trajectory.csv and DIR/summary.json and writes DIR/trajectory.png,
-DIR/phase.png and DIR/energy.png (800 x 500 px).
+DIR/phase.png and DIR/energy.png (800 x 500 px), and DIR/spacetime.png when d > 8.
+
+Large systems (d > MAX_COMPONENTS, e.g. a chain of 10^5 masses) stay readable: the trajectory
+shows the first, middle and last coordinates and the one with the largest excursion, the phase
+portrait that largest one, and spacetime.png shows x_i(t) as an image (site i across, time t
+up), reduced to at most MAX_IMAGE × MAX_IMAGE pixels and cropped to the sites that moved.
 
 Files are drawn on matplotlib Figure objects with the Agg canvas, not through pyplot: no global
 state and no GUI backend is touched, so plotting works headless and inside applications that use
@@ -15,10 +21,11 @@ import sys
 
 import numpy as np
 
-MAX_COMPONENTS = 6  # more components than this make an unreadable trajectory plot
+MAX_COMPONENTS = 8  # up to this many components are all drawn; more get the large-d treatment
+MAX_IMAGE = 1000  # pixels per axis of the space-time image
 FIGSIZE = (8, 5)
 DPI = 100
-FILES = ("trajectory.png", "phase.png", "energy.png")
+FILES = ("trajectory.png", "phase.png", "energy.png", "spacetime.png")
 
 
 def _title(summary, what):
@@ -31,21 +38,81 @@ def _title(summary, what):
 
 
 def load(directory):
-    """(data, summary): trajectory.csv as a structured array and summary.json as a dict."""
+    """(data, summary): trajectory.csv as a dict column name -> array and summary.json as a
+    dict. (np.loadtxt, not genfromtxt: a chain of 10^5 masses has 2·10^5 + 4 columns.)"""
     with open(os.path.join(directory, "summary.json"), encoding="utf-8") as f:
         summary = json.load(f)
-    data = np.genfromtxt(os.path.join(directory, "trajectory.csv"), delimiter=",", names=True)
-    return np.atleast_1d(data), summary
+    path = os.path.join(directory, "trajectory.csv")
+    with open(path, encoding="utf-8") as f:
+        names = f.readline().strip().split(",")
+    values = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if values.size == 0:
+        values = np.empty((0, len(names)))
+    return {n: values[:, k] for k, n in enumerate(names)}, summary
 
 
 def columns(data):
-    """The columns of trajectory.csv as arrays t, x (rows × d), v, energy, dissipated, balance."""
-    names = data.dtype.names
+    """The columns of trajectory.csv (the dict of load(), or a structured array) as arrays t,
+    x (rows × d), v, energy, dissipated, balance."""
+    names = list(data.keys()) if isinstance(data, dict) else list(data.dtype.names)
     xs = [n for n in names if n.startswith("x")]
     vs = [n for n in names if n.startswith("v")]
     return dict(t=data["t"], x=np.column_stack([data[n] for n in xs]),
                 v=np.column_stack([data[n] for n in vs]), energy=data["energy"],
                 dissipated=data["dissipated"], balance=data["balance"])
+
+
+def _largest_excursion(x):
+    """Index of the coordinate with the largest max_t |x_i(t)| (NaN rows ignored)."""
+    with np.errstate(invalid="ignore"):
+        peak = np.nanmax(np.abs(x), axis=0) if len(x) else np.zeros(x.shape[1])
+    peak = np.where(np.isfinite(peak), peak, -1.0)
+    return int(np.argmax(peak))
+
+
+def _shown_components(x):
+    """The coordinates the trajectory plot draws: all for d <= MAX_COMPONENTS, else the first,
+    middle and last and the one with the largest excursion."""
+    d = x.shape[1]
+    if d <= MAX_COMPONENTS:
+        return list(range(d))
+    return sorted({0, (d - 1) // 2, d - 1, _largest_excursion(x)})
+
+
+def _block_extreme(a, size):
+    """Columns of a reduced in blocks of `size`: each block keeps its entry of largest |value|
+    (a narrow pulse stays visible, which taking every size-th column would miss)."""
+    rows, n = a.shape
+    if size <= 1:
+        return a
+    pad = (-n) % size
+    if pad:
+        a = np.concatenate([a, np.full((rows, pad), np.nan)], axis=1)
+    blocks = a.reshape(rows, -1, size)
+    magnitude = np.where(np.isfinite(blocks), np.abs(blocks), -1.0)
+    pick = np.argmax(magnitude, axis=2)
+    return np.take_along_axis(blocks, pick[..., None], axis=2)[..., 0]
+
+
+def spacetime_image(t, x):
+    """(image, sites, times): x_i(t) reduced to at most MAX_IMAGE × MAX_IMAGE for display, rows
+    = times, columns = sites. Sites are cropped to where the chain moved (max_t |x_i| above 10^-3
+    of the maximum, with a margin) when that is less than half of them; `sites` = (first, last,
+    block) in 1-based site numbers, `times` the row times."""
+    rows, d = x.shape
+    lo, hi = 0, d - 1
+    with np.errstate(invalid="ignore"):
+        peak = np.nanmax(np.abs(x), axis=0) if rows else np.zeros(d)
+    top = np.nanmax(peak) if np.isfinite(peak).any() else 0.0
+    if top > 0:
+        active = np.flatnonzero(peak > 1e-3 * top)
+        if active.size and active[-1] - active[0] + 1 < d // 2:
+            margin = max(2, (active[-1] - active[0] + 1) // 10)
+            lo, hi = max(0, active[0] - margin), min(d - 1, active[-1] + margin)
+    step_t = max(1, -(-rows // MAX_IMAGE))
+    block = max(1, -(-(hi - lo + 1) // MAX_IMAGE))
+    image = _block_extreme(x[::step_t, lo:hi + 1], block)
+    return image, (lo + 1, hi + 1, block), np.asarray(t)[::step_t]
 
 
 def _new_figure(pyplot, **kwargs):
@@ -67,13 +134,14 @@ def figures(t, x, v, energy, dissipated, balance, summary, pyplot=False):
     energy = np.asarray(energy)
     dissipated = np.asarray(dissipated)
     d = x.shape[1]
+    marker = "." if len(t) <= 60 and d > MAX_COMPONENTS else None  # thinned output: show samples
 
     fig1 = _new_figure(pyplot)
     ax = fig1.subplots()
-    for i in range(min(d, MAX_COMPONENTS)):
-        ax.plot(t, x[:, i], lw=1.2, label=f"$x_{{{i + 1}}}(t)$")
+    for i in _shown_components(x):
+        ax.plot(t, x[:, i], lw=1.2, marker=marker, ms=4, label=f"$x_{{{i + 1}}}(t)$")
     if d > MAX_COMPONENTS:
-        ax.plot([], [], " ", label=f"(first {MAX_COMPONENTS} of {d} shown)")
+        ax.plot([], [], " ", label=f"(first, middle, last, largest of {d}; see spacetime.png)")
     ax.set_xlabel("time $t$")
     ax.set_ylabel("position $x_i$")
     ax.set_title(_title(summary, "trajectory"), fontsize=10)
@@ -83,12 +151,14 @@ def figures(t, x, v, energy, dissipated, balance, summary, pyplot=False):
 
     fig2 = _new_figure(pyplot)
     ax = fig2.subplots()
-    ax.plot(x[:, 0], v[:, 0], lw=0.9, label="trajectory")
-    ax.plot(x[0, 0], v[0, 0], "o", color="tab:green", label="start")
-    ax.plot(x[-1, 0], v[-1, 0], "s", color="tab:red", label="end")
-    ax.set_xlabel("position $x_1$")
-    ax.set_ylabel("velocity $v_1$")
-    ax.set_title(_title(summary, "phase portrait (first component)"), fontsize=10)
+    c = 0 if d <= MAX_COMPONENTS else _largest_excursion(x)
+    which = "first component" if c == 0 else f"component {c + 1}, the largest excursion"
+    ax.plot(x[:, c], v[:, c], lw=0.9, marker=marker, ms=4, label="trajectory")
+    ax.plot(x[0, c], v[0, c], "o", color="tab:green", label="start")
+    ax.plot(x[-1, c], v[-1, c], "s", color="tab:red", label="end")
+    ax.set_xlabel(f"position $x_{{{c + 1}}}$")
+    ax.set_ylabel(f"velocity $v_{{{c + 1}}}$")
+    ax.set_title(_title(summary, f"phase portrait ({which})"), fontsize=10)
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=9)
     fig2.tight_layout()
@@ -109,12 +179,30 @@ def figures(t, x, v, energy, dissipated, balance, summary, pyplot=False):
     ax2.legend(loc="best", fontsize=9)
     ax2.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
     fig3.tight_layout()
-    return [fig1, fig2, fig3]
+    if d <= MAX_COMPONENTS:
+        return [fig1, fig2, fig3]
+
+    fig4 = _new_figure(pyplot)
+    ax = fig4.subplots()
+    image, (first, last, block), times = spacetime_image(t, x)
+    finite = np.abs(image[np.isfinite(image)])
+    scale = float(finite.max()) if finite.size and finite.max() > 0 else 1.0
+    dt = float(np.mean(np.diff(times))) if len(times) > 1 else 1.0
+    mesh = ax.imshow(image, origin="lower", aspect="auto", interpolation="nearest",
+                     cmap="RdBu_r", vmin=-scale, vmax=scale,
+                     extent=(first - 0.5, last + 0.5, times[0] - dt / 2, times[-1] + dt / 2))
+    fig4.colorbar(mesh, ax=ax, label="position $x_i(t)$")
+    ax.set_xlabel(f"site $i$ (of {d}; sites {first}–{last} shown"
+                  + (f", blocks of {block}: largest |x_i|)" if block > 1 else ")"))
+    ax.set_ylabel(f"time $t$ ({len(times)} stored rows)")
+    ax.set_title(_title(summary, "space-time image of $x_i(t)$"), fontsize=10)
+    fig4.tight_layout()
+    return [fig1, fig2, fig3, fig4]
 
 
 def save(figs, directory):
-    """Writes the figures of figures() as trajectory.png, phase.png, energy.png; returns the
-    paths."""
+    """Writes the figures of figures() as trajectory.png, phase.png, energy.png (and
+    spacetime.png for d > MAX_COMPONENTS); returns the paths."""
     os.makedirs(directory, exist_ok=True)
     paths = []
     for fig, name in zip(figs, FILES):
@@ -125,9 +213,14 @@ def save(figs, directory):
 
 
 def plot_run(directory):
-    """Draws the plots of the run in `directory` (trajectory.csv, summary.json) into it."""
+    """Draws the plots of the run in `directory` (trajectory.csv, summary.json) into it. A
+    spacetime.png left there by an earlier run with d > 8 is removed when this one has none."""
     data, summary = load(directory)
-    return save(figures(summary=summary, **columns(data)), directory)
+    paths = save(figures(summary=summary, **columns(data)), directory)
+    stale = os.path.join(directory, FILES[-1])
+    if stale not in paths and os.path.exists(stale):
+        os.remove(stale)
+    return paths
 
 
 if __name__ == "__main__":

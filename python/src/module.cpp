@@ -17,6 +17,7 @@
 // z_k (fracvi/discrete/operators.hpp). A C-contiguous NumPy array of shape (N+1, d), row k = z_k,
 // has exactly that memory layout, so Python uses the NumPy-natural shape and nothing is
 // transposed.
+#include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -151,6 +152,35 @@ py::array vector_copy(const Eigen::VectorXd& v) {
   py::array_t<double> out(v.size());
   std::copy(v.data(), v.data() + v.size(), out.mutable_data());
   return out;
+}
+
+/// M or R as stored: dense storage as a NumPy array, sparse storage (a number or d numbers in the
+/// problem) as a scipy.sparse.csc_matrix (pybind11's Eigen::SparseMatrix caster; a copy). Never
+/// expanded: a chain of 10^5 masses would need 80 GB dense.
+py::object model_matrix(const ModelMatrix& m) {
+  if (!m.is_sparse()) return matrix_copy(m.dense());
+  try {
+    py::module_::import("scipy.sparse");
+  } catch (py::error_already_set& e) {
+    if (!e.matches(PyExc_ImportError)) throw;
+    throw py::import_error(
+        "this matrix is stored sparse (the problem gives it as a number or d numbers) and is "
+        "returned as a scipy.sparse.csc_matrix, but scipy is not installed (Debian: "
+        "python3-scipy)");
+  }
+  return py::cast(m.sparse());
+}
+
+py::object chain_dict(const ProblemSpec& s) {
+  if (!s.chain) return py::none();
+  const ChainOptions& c = *s.chain;
+  py::dict d;
+  d["stiffness"] = c.stiffness;
+  d["cubic"] = c.cubic;
+  d["quartic"] = c.quartic;
+  d["onsite"] = c.onsite;
+  d["boundary"] = std::string(to_string(c.boundary));
+  return d;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -355,8 +385,10 @@ void bind(py::module_& m) {
       .def_readonly("source", &ProblemSpec::source)
       .def_readonly("name", &ProblemSpec::name)
       .def_property_readonly("dim", [](const ProblemSpec& s) { return s.dim; })
-      .def_property_readonly("mass", [](const ProblemSpec& s) { return matrix_copy(s.mass); })
-      .def_property_readonly("damping", [](const ProblemSpec& s) { return matrix_copy(s.damping); })
+      .def_property_readonly("mass", [](const ProblemSpec& s) { return model_matrix(s.mass); })
+      .def_property_readonly("damping",
+                             [](const ProblemSpec& s) { return model_matrix(s.damping); })
+      .def_property_readonly("chain", &chain_dict)
       .def_readonly("alpha", &ProblemSpec::alpha)
       .def_readonly("convention", &ProblemSpec::convention)
       .def_readonly("potential", &ProblemSpec::potential)
@@ -373,6 +405,10 @@ void bind(py::module_& m) {
       .def_readonly("scheme", &ProblemSpec::scheme)
       .def_readonly("newton_tolerance", &ProblemSpec::newton_tolerance)
       .def_readonly("newton_max_iterations", &ProblemSpec::newton_max_iterations)
+      .def_readonly("history", &ProblemSpec::history)
+      .def_readonly("history_tolerance", &ProblemSpec::history_tolerance)
+      .def_readonly("linear_solver", &ProblemSpec::linear_solver)
+      .def_readonly("threads", &ProblemSpec::threads)
       .def_readonly("every", &ProblemSpec::every)
       .def("to_dict", [](const ProblemSpec& s) { return to_python(to_json(s)); })
       .def("to_toml", [](const ProblemSpec& s) { return to_toml(s); });
@@ -432,6 +468,16 @@ void bind(py::module_& m) {
                                const auto& s = self.cast<const Run&>().solution;
                                return view(self, s.balance.data(), s.balance.size(), 0);
                              })
+      .def_property_readonly(
+          "step",
+          [](const Run& r) {
+            const auto& steps = r.solution.step;
+            py::array_t<std::int64_t> out(static_cast<py::ssize_t>(steps.size()));
+            std::copy(steps.begin(), steps.end(), out.mutable_data());
+            return out;
+          })
+      .def_property_readonly("save_every", [](const Run& r) { return r.solution.save_every; })
+      .def_property_readonly("linear_solver", [](const Run& r) { return r.solution.linear_solver; })
       .def_property_readonly("status",
                              [](const Run& r) { return std::string(to_string(r.solution.status)); })
       .def_property_readonly("ok", [](const Run& r) { return r.solution.ok(); })

@@ -129,8 +129,9 @@ def test_scalar_matrices_and_alternative_keys():
     del d["time"]["steps"]
     d["time"]["step"] = 0.01
     p = fracvi.Problem.from_dict(d)
-    np.testing.assert_array_equal(p.mass, 2.0 * np.eye(2))
-    np.testing.assert_array_equal(p.damping, np.diag([0.2, 0.1]))
+    # A number or d numbers are stored sparse (a diagonal): scipy.sparse matrices.
+    np.testing.assert_array_equal(p.mass.toarray(), 2.0 * np.eye(2))
+    np.testing.assert_array_equal(p.damping.toarray(), np.diag([0.2, 0.1]))
     assert (p.alpha, p.steps) == (0.5, 500)
 
 

@@ -92,6 +92,12 @@ class MassSolver {
       : dense_(!mass.is_sparse() || solver == LinearSolver::kDense) {
     const Eigen::Index d = mass.rows();
     if (dense_) {
+      if (d > internal::kMaxDenseDimension) {
+        throw ValidationError("model.mass would be inverted dense (d = " + std::to_string(d) +
+                              " > " + std::to_string(internal::kMaxDenseDimension) +
+                              "): store M sparse (e.g. ModelMatrix::identity, a scalar or vector "
+                              "mass in a problem file) and use linear_solver = auto");
+      }
       const Eigen::MatrixXd m = mass.to_dense();
       const Eigen::LLT<Eigen::MatrixXd> llt(m);
       minv_damping_ = llt.solve(damping.to_dense());

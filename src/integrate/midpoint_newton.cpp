@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
 #include <utility>
 
 namespace fracvi::internal {
@@ -44,6 +45,14 @@ MidpointNewton::MidpointNewton(ModelMatrix A, double h, const Potential* potenti
   std::shared_ptr<SymmetricPattern> pattern;
   backend_ = resolve(solver, A_, potential_, pattern);
   if (backend_ == LinearSolver::kDense) {
+    if (d > kMaxDenseDimension) {
+      throw ValidationError(
+          "the Newton matrix M + (h^2/4) Hess U would be factored dense (d = " + std::to_string(d) +
+          ", " + std::to_string(static_cast<double>(d) * static_cast<double>(d) * 8e-9 * 3) +
+          " GB for the matrix, its factor and the Hessian): use linear_solver = auto, banded or "
+          "sparse with a sparse mass matrix and a potential with a sparse Hessian "
+          "(docs/large-systems.md)");
+    }
     if (A_.is_sparse()) A_ = ModelMatrix(A_.to_dense());
     hessian_ = Eigen::MatrixXd::Zero(d, d);
     jacobian_.resize(d, d);

@@ -8,9 +8,20 @@
 
 #include "fracvi/analysis/convergence.hpp"
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/model/chain_potential.hpp"
 #include "fracvi/model/expression_potential.hpp"
 
 namespace fracvi {
+
+std::shared_ptr<const Potential> make_potential(const ProblemSpec& spec) {
+  if (spec.chain) {
+    ChainOptions options = *spec.chain;
+    options.dimension = spec.dim;
+    options.threads = spec.threads;
+    return make_chain_potential(options);
+  }
+  return std::make_shared<const ExpressionPotential>(spec.dim, spec.potential);
+}
 
 InitialValueProblem make_initial_value_problem(const ProblemSpec& spec) {
   InitialValueProblem p;
@@ -18,7 +29,7 @@ InitialValueProblem make_initial_value_problem(const ProblemSpec& spec) {
   p.model.damping = spec.damping;
   p.model.alpha = spec.alpha;
   p.model.convention = *parse_convention(spec.convention);
-  p.model.potential = std::make_shared<const ExpressionPotential>(spec.dim, spec.potential);
+  p.model.potential = make_potential(spec);
   p.model.forcing = make_expression_forcing(spec.force);
   p.x0 = spec.position;
   p.v0 = spec.velocity;
@@ -34,6 +45,9 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   o.newton.max_iterations = spec.newton_max_iterations;
   o.history = *parse_history_kind(spec.history);
   o.history_tolerance = spec.history_tolerance;
+  o.linear_solver = *parse_linear_solver(spec.linear_solver);
+  o.threads = spec.threads;
+  o.save_every = static_cast<std::size_t>(spec.every);
   return o;
 }
 
@@ -66,8 +80,8 @@ void write_file_atomically(const std::filesystem::path& file, const std::string&
 }
 
 nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
-  const Eigen::Index last = static_cast<Eigen::Index>(s.steps_done);
-  nlohmann::json reference_error;  // null without a [reference]
+  const Eigen::Index last = s.t.size() - 1;  // the last stored row: step s.steps_done
+  nlohmann::json reference_error;            // null without a [reference]
   if (!spec.reference.empty())
     reference_error = json_number(max_error(s, parse_reference(spec.reference)));
   return {
@@ -84,6 +98,8 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
       {"max_balance_error", json_number(s.max_balance_error)},
       {"newton_iterations", s.newton_iterations},
       {"max_newton_iterations_per_step", s.max_newton_iterations_per_step},
+      {"linear_solver", s.linear_solver},
+      {"save_every", s.save_every},
       {"wall_seconds", s.wall_time_seconds},
       {"method", s.method},
       {"declared_order", s.declared_order},
@@ -99,11 +115,11 @@ void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
   for (Eigen::Index i = 1; i <= d; ++i) csv += ",x" + std::to_string(i);
   for (Eigen::Index i = 1; i <= d; ++i) csv += ",v" + std::to_string(i);
   csv += ",energy,dissipated,balance\n";
-  const auto rows = static_cast<Eigen::Index>(s.steps_done) + 1;
-  csv.reserve(csv.size() + static_cast<std::size_t>(rows / spec.every + 1) *
-                               static_cast<std::size_t>(2 * d + 4) * 24);
-  for (Eigen::Index k = 0; k < rows && k < s.t.size(); ++k) {
-    if (k % spec.every != 0 && k != rows - 1) continue;
+  // Every stored row: the integrator already kept only every save_every-th state.
+  const Eigen::Index rows = s.t.size();
+  csv.reserve(csv.size() +
+              static_cast<std::size_t>(rows) * static_cast<std::size_t>(2 * d + 4) * 24);
+  for (Eigen::Index k = 0; k < rows; ++k) {
     append_csv_number(csv, s.t[k]);
     for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_csv_number(csv, s.x(k, i));
     for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_csv_number(csv, s.v(k, i));

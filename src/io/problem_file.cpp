@@ -3,6 +3,7 @@
 #include <toml++/toml.h>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -10,6 +11,7 @@
 #include <sstream>
 
 #include "fracvi/expression/expression.hpp"
+#include "fracvi/integrate/symmetric_factor.hpp"
 #include "fracvi/lagrangian/lagrangian.hpp"
 #include "fracvi/model/expression_potential.hpp"
 
@@ -17,22 +19,30 @@ namespace fracvi {
 
 namespace {
 
-// The schema: section → allowed keys. "" is the top level.
+// The schema: section → allowed keys. "" is the top level; "model.chain" is a table in [model].
 const std::map<std::string, std::vector<std::string>>& schema() {
   static const std::map<std::string, std::vector<std::string>> s{
       {"", {"name", "model", "initial", "boundary", "time", "method", "output", "reference"}},
       {"model",
-       {"dim", "mass", "damping", "alpha", "damping_order", "convention", "potential", "force",
-        "lagrangian"}},
+       {"dim", "mass", "damping", "alpha", "damping_order", "convention", "potential", "chain",
+        "force", "lagrangian"}},
+      {"model.chain", {"stiffness", "cubic", "quartic", "onsite", "boundary"}},
       {"initial", {"position", "velocity"}},
       {"boundary", {"start", "end"}},
       {"time", {"start", "end", "steps", "step"}},
       {"method",
-       {"scheme", "newton_tolerance", "newton_max_iterations", "history", "history_tolerance"}},
+       {"scheme", "newton_tolerance", "newton_max_iterations", "history", "history_tolerance",
+        "linear_solver", "threads"}},
       {"output", {"every"}},
       {"reference", {"position"}},
   };
   return s;
+}
+
+std::string joined(const std::vector<std::string>& names, const char* separator = ", ") {
+  std::string out;
+  for (const auto& n : names) out += (out.empty() ? "" : separator) + n;
+  return out;
 }
 
 std::size_t edit_distance(std::string_view a, std::string_view b) {
@@ -60,7 +70,14 @@ std::string suggestion(std::string_view wrong, const std::vector<std::string>& c
   return best.empty() ? "" : " (did you mean '" + best + "'?)";
 }
 
-std::string format_value(double v, int digits = 17) {
+// The value as given: the shortest text that reads back as the same double (-0.2, not
+// -0.20000000000000001); `digits` significant digits otherwise.
+std::string format_value(double v, int digits = 0) {
+  if (digits == 0) {
+    char buf[32];
+    const auto r = std::to_chars(buf, buf + sizeof buf, v);
+    return std::string(buf, r.ptr);
+  }
   std::ostringstream os;
   os.precision(digits);
   os << v;
@@ -90,23 +107,38 @@ class Reader {
       }
       if (key == "name") continue;
       if (!v.is_table()) fail(key, "must be a section [" + key + "], not a value");
-      const auto& allowed = s.at(key);
-      for (auto&& [k2, v2] : *v.as_table()) {
-        const std::string sub(k2.str());
-        if (std::find(allowed.begin(), allowed.end(), sub) == allowed.end()) {
-          std::string valid;
-          for (const auto& a : allowed) valid += (valid.empty() ? "" : ", ") + a;
-          fail(key + "." + sub,
-               "unknown key" + suggestion(sub, allowed) + "; valid in [" + key + "]: " + valid);
-        }
+      check_table_keys(*v.as_table(), key);
+    }
+  }
+
+  // The keys of section `path` (and of its sub-tables that have a schema, e.g. [model.chain]).
+  void check_table_keys(const toml::table& table, const std::string& path) const {
+    const auto& s = schema();
+    const auto& allowed = s.at(path);
+    for (auto&& [k, v] : table) {
+      const std::string sub(k.str());
+      if (std::find(allowed.begin(), allowed.end(), sub) == allowed.end()) {
+        fail(path + "." + sub, "unknown key" + suggestion(sub, allowed) + "; valid in [" + path +
+                                   "]: " + joined(allowed));
+      }
+      if (v.is_table() && s.count(path + "." + sub) != 0) {
+        check_table_keys(*v.as_table(), path + "." + sub);
       }
     }
   }
 
+  // `section` may be a dotted path of tables ("model.chain").
   const toml::node* find(const std::string& section, const std::string& key) const {
-    if (section.empty()) return root_.get(key);
-    const toml::node* sec = root_.get(section);
-    return sec && sec->is_table() ? sec->as_table()->get(key) : nullptr;
+    const toml::table* table = &root_;
+    std::size_t from = 0;
+    while (!section.empty() && from <= section.size()) {
+      const std::size_t dot = std::min(section.find('.', from), section.size());
+      const toml::node* sub = table->get(section.substr(from, dot - from));
+      if (!sub || !sub->is_table()) return nullptr;
+      table = sub->as_table();
+      from = dot + 1;
+    }
+    return table->get(key);
   }
   static std::string path(const std::string& section, const std::string& key) {
     return section.empty() ? key : section + "." + key;
@@ -133,7 +165,9 @@ class Reader {
     return *n.value<std::string>();
   }
   Eigen::VectorXd vector(const toml::node& n, const std::string& key, Eigen::Index d) const {
-    if (!n.is_array()) fail(key, "must be an array of " + std::to_string(d) + " numbers");
+    if (!n.is_array()) {
+      fail(key, "must be an array of " + std::to_string(d) + " numbers, got " + type_name(n));
+    }
     const auto& a = *n.as_array();
     if (static_cast<Eigen::Index>(a.size()) != d) {
       fail(key, "has " + std::to_string(a.size()) + " entries, model.dim is " + std::to_string(d));
@@ -143,10 +177,22 @@ class Reader {
       v[i] = number(a[static_cast<std::size_t>(i)], key + "[" + std::to_string(i + 1) + "]");
     return v;
   }
-  // Scalar (times I), vector (diagonal) or d×d matrix (array of rows).
-  Eigen::MatrixXd matrix(const toml::node& n, const std::string& key, Eigen::Index d) const {
-    if (n.is_number()) return number(n, key) * Eigen::MatrixXd::Identity(d, d);
-    if (!n.is_array()) fail(key, "must be a number, an array of d numbers or a d×d array");
+  // Scalar (times I) or vector (diagonal), both stored sparse, or a d×d matrix (array of rows),
+  // stored dense. `definite`: M (entries > 0, positive definite) or R (entries >= 0, positive
+  // semidefinite). A diagonal is checked entry by entry, never expanded.
+  ModelMatrix matrix(const toml::node& n, const std::string& key, Eigen::Index d,
+                     bool definite) const {
+    const char* rule = definite ? " must be positive (M must be positive definite)"
+                                : " must not be negative (R must be positive semidefinite)";
+    const auto bad = [definite](double v) { return definite ? !(v > 0.0) : v < 0.0; };
+    if (n.is_number()) {
+      const double v = number(n, key);
+      if (bad(v)) fail(key, "= " + format_value(v) + rule);
+      return ModelMatrix::identity(d, v);
+    }
+    if (!n.is_array()) {
+      fail(key, "must be a number, an array of d numbers or a d×d array, got " + type_name(n));
+    }
     const auto& a = *n.as_array();
     if (!a.empty() && a[0].is_array()) {
       if (static_cast<Eigen::Index>(a.size()) != d) {
@@ -160,7 +206,45 @@ class Reader {
       }
       return m;
     }
-    return vector(n, key, d).asDiagonal();
+    const Eigen::VectorXd v = vector(n, key, d);
+    for (Eigen::Index i = 0; i < d; ++i) {
+      if (bad(v[i]))
+        fail(key + "[" + std::to_string(i + 1) + "]", "= " + format_value(v[i]) + rule);
+    }
+    return ModelMatrix::diagonal(v);
+  }
+
+  // [initial] data: an array of d numbers, one number for every coordinate, or a formula in
+  // i (1-based coordinate index), d and pi. `formula` receives the formula ("" otherwise).
+  Eigen::VectorXd initial_vector(const toml::node& n, const std::string& key, Eigen::Index d,
+                                 std::string& formula) const {
+    formula.clear();
+    if (n.is_number()) return Eigen::VectorXd::Constant(d, number(n, key));
+    if (n.is_string()) {
+      formula = *n.value<std::string>();
+      Expression e;
+      try {
+        e = Expression::parse(formula, {"i", "d"});
+      } catch (const ExpressionError& err) {
+        fail(key, "= \"" + formula + "\": " + err.reason() + " at column " +
+                      std::to_string(err.column() + 1) + " (a formula in i = 1..d, d and pi)");
+      }
+      Eigen::VectorXd v(d);
+      const double dd = static_cast<double>(d);
+      for (Eigen::Index i = 0; i < d; ++i) {
+        v[i] = e({static_cast<double>(i + 1), dd});
+        if (!std::isfinite(v[i])) {
+          fail(key, "= \"" + formula + "\" is " + format_value(v[i]) +
+                        " at i = " + std::to_string(i + 1) + " (initial data must be finite)");
+        }
+      }
+      return v;
+    }
+    if (!n.is_array()) {
+      fail(key, "must be an array of " + std::to_string(d) +
+                    " numbers, one number or a formula in i and d (a string), got " + type_name(n));
+    }
+    return vector(n, key, d);
   }
 
   static std::string type_name(const toml::node& n) {
@@ -195,6 +279,64 @@ bool is_symmetric(const Eigen::MatrixXd& m) {
   return (m - m.transpose()).cwiseAbs().maxCoeff() <= 1e-12 * scale;
 }
 
+// The dense-storage checks (the sparse forms are diagonals checked entry by entry by the reader).
+void check_dense_mass(const Reader& r, const Eigen::MatrixXd& m) {
+  if (!is_symmetric(m)) r.fail("model.mass", "is not symmetric");
+  Eigen::LLT<Eigen::MatrixXd> llt(m);
+  if (llt.info() != Eigen::Success) {
+    const double lmin = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m).eigenvalues()[0];
+    r.fail("model.mass", "is not symmetric positive definite (smallest eigenvalue " +
+                             format_value(lmin, 6) + ")");
+  }
+}
+
+void check_dense_damping(const Reader& r, const Eigen::MatrixXd& m) {
+  if (!is_symmetric(m)) r.fail("model.damping", "is not symmetric");
+  const double lmin = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m).eigenvalues().minCoeff();
+  const double scale = std::max(1.0, m.cwiseAbs().maxCoeff());
+  if (lmin < -1e-12 * scale) {
+    r.fail("model.damping",
+           "is not positive semidefinite (smallest eigenvalue " + format_value(lmin, 6) + ")");
+  }
+}
+
+// [model.chain]: the built-in FPUT chain with d = model.dim masses.
+ChainOptions read_chain(const Reader& r, const toml::node& node, Eigen::Index d) {
+  if (!node.is_table()) {
+    r.fail("model.chain",
+           "must be a table [model.chain] (keys stiffness, cubic, quartic, onsite, "
+           "boundary), got " +
+               Reader::type_name(node));
+  }
+  ChainOptions c;
+  c.dimension = d;
+  if (const auto* n = r.find("model.chain", "stiffness"))
+    c.stiffness = r.number(*n, "model.chain.stiffness");
+  if (const auto* n = r.find("model.chain", "cubic")) c.cubic = r.number(*n, "model.chain.cubic");
+  if (const auto* n = r.find("model.chain", "quartic"))
+    c.quartic = r.number(*n, "model.chain.quartic");
+  if (const auto* n = r.find("model.chain", "onsite"))
+    c.onsite = r.number(*n, "model.chain.onsite");
+  if (const auto* n = r.find("model.chain", "boundary")) {
+    const std::string b = r.string(*n, "model.chain.boundary");
+    const auto parsed = parse_chain_boundary(b);
+    if (!parsed) {
+      r.fail("model.chain.boundary", "= \"" + b + "\" is not one of fixed, free, periodic" +
+                                         suggestion(b, {"fixed", "free", "periodic"}));
+    }
+    c.boundary = *parsed;
+  }
+  const Eigen::Index minimum = c.boundary == ChainBoundary::kPeriodic ? 3
+                               : c.boundary == ChainBoundary::kFree   ? 2
+                                                                      : 1;
+  if (d < minimum) {
+    r.fail("model.dim", "= " + std::to_string(d) + " is too small for model.chain.boundary = \"" +
+                            std::string(to_string(c.boundary)) + "\": it needs at least " +
+                            std::to_string(minimum) + " masses");
+  }
+  return c;
+}
+
 void apply_override(toml::table& root, const std::string& assignment, const std::string& source) {
   const auto eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0) {
@@ -211,14 +353,14 @@ void apply_override(toml::table& root, const std::string& assignment, const std:
   } catch (const toml::parse_error&) {
     is_toml = false;
   }
-  const auto dot = path.find('.');
+  // section.key, or section.table.key ([model.chain]): every part before the last is a table.
   toml::table* target = &root;
   std::string key = path;
-  if (dot != std::string::npos) {
-    const std::string section = path.substr(0, dot);
-    key = path.substr(dot + 1);
-    if (!root.contains(section)) root.insert(section, toml::table{});
-    target = root.get_as<toml::table>(section);
+  for (auto dot = key.find('.'); dot != std::string::npos; dot = key.find('.')) {
+    const std::string section = key.substr(0, dot);
+    key = key.substr(dot + 1);
+    if (!target->contains(section)) target->insert(section, toml::table{});
+    target = target->get_as<toml::table>(section);
     if (!target) {
       throw ProblemFileError(source + ": --set " + path + ": '" + section + "' is not a section");
     }
@@ -249,7 +391,7 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   const auto* lagrangian = r.find("model", "lagrangian");
   if (lagrangian) {
     p.lagrangian = r.string(*lagrangian, "model.lagrangian");
-    for (const char* key : {"mass", "damping", "potential", "force"}) {
+    for (const char* key : {"mass", "damping", "potential", "chain", "force"}) {
       if (r.find("model", key)) {
         r.fail(std::string("model.") + key,
                "cannot be combined with model.lagrangian (the Lagrangian already holds the "
@@ -259,26 +401,14 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     check_expression(r, "model.lagrangian", p.lagrangian,
                      ExpressionLagrangian::variable_names(p.dim));
   } else {
-    p.mass = r.matrix(r.required("model", "mass", "the mass matrix M"), "model.mass", p.dim);
-    if (!is_symmetric(p.mass)) r.fail("model.mass", "is not symmetric");
-    Eigen::LLT<Eigen::MatrixXd> llt(p.mass);
-    if (llt.info() != Eigen::Success) {
-      const double lmin = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(p.mass).eigenvalues()[0];
-      r.fail("model.mass", "is not symmetric positive definite (smallest eigenvalue " +
-                               format_value(lmin, 6) + ")");
-    }
+    p.mass = r.matrix(r.required("model", "mass", "the mass matrix M"), "model.mass", p.dim,
+                      /*definite=*/true);
+    if (!p.mass.is_sparse()) check_dense_mass(r, p.mass.dense());
   }
-  p.damping = Eigen::MatrixXd::Zero(p.dim, p.dim);
-  if (const auto* n = r.find("model", "damping")) p.damping = r.matrix(*n, "model.damping", p.dim);
-  if (!is_symmetric(p.damping)) r.fail("model.damping", "is not symmetric");
-  {
-    const double lmin =
-        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(p.damping).eigenvalues().minCoeff();
-    const double scale = std::max(1.0, p.damping.cwiseAbs().maxCoeff());
-    if (lmin < -1e-12 * scale) {
-      r.fail("model.damping",
-             "is not positive semidefinite (smallest eigenvalue " + format_value(lmin, 6) + ")");
-    }
+  p.damping = ModelMatrix::zero(p.dim);
+  if (const auto* n = r.find("model", "damping")) {
+    p.damping = r.matrix(*n, "model.damping", p.dim, /*definite=*/false);
+    if (!p.damping.is_sparse()) check_dense_damping(r, p.damping.dense());
   }
   const auto* alpha = r.find("model", "alpha");
   const auto* order = r.find("model", "damping_order");
@@ -313,7 +443,7 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
                                      "\" must be \"caputo\" or \"riemann-liouville\"" +
                                      suggestion(p.convention, {"caputo", "riemann-liouville"}));
     }
-  } else if (!(p.damping.isZero(0.0) || p.alpha == 0.5)) {
+  } else if (!(p.damping.is_zero() || p.alpha == 0.5)) {
     r.fail("model.convention",
            "missing: fractional damping needs an explicit memory convention, \"caputo\" (memory "
            "of x - x(0) - t v(0)) or \"riemann-liouville\" (the paper's)");
@@ -330,9 +460,17 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   }
   auto names = ExpressionPotential::position_names(p.dim);
   names.push_back("t");
-  if (!lagrangian) {
-    p.potential = r.string(r.required("model", "potential", "U as a formula in x1..xd and t"),
-                           "model.potential");
+  if (const auto* chain = r.find("model", "chain"); chain && !lagrangian) {
+    p.chain = read_chain(r, *chain, p.dim);
+    if (r.find("model", "potential")) {
+      r.fail("model.potential",
+             "and model.chain are both given; give one (model.chain is the built-in FPUT chain "
+             "potential, model.potential a formula)");
+    }
+  } else if (!lagrangian) {
+    p.potential = r.string(
+        r.required("model", "potential", "U as a formula in x1..xd and t, or a [model.chain]"),
+        "model.potential");
     check_expression(r, "model.potential", p.potential, names);
   }
   if (const auto* n = r.find("model", "force")) {
@@ -351,13 +489,15 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
 
   // [initial] (optional when the file poses a boundary value problem)
   const bool has_boundary = r.find("", "boundary") != nullptr;
-  if (!has_boundary || r.find("initial", "position") != nullptr)
-    p.position = r.vector(r.required("initial", "position", "x(0)"), "initial.position", p.dim);
+  if (!has_boundary || r.find("initial", "position") != nullptr) {
+    p.position = r.initial_vector(r.required("initial", "position", "x(0)"), "initial.position",
+                                  p.dim, p.position_formula);
+  }
   p.velocity = Eigen::VectorXd::Zero(p.dim);
   if (const auto* n = r.find("initial", "velocity"))
-    p.velocity = r.vector(*n, "initial.velocity", p.dim);
+    p.velocity = r.initial_vector(*n, "initial.velocity", p.dim, p.velocity_formula);
   if (p.convention == "riemann-liouville" && 2.0 * p.alpha > 1.0 && !p.position.isZero(0.0) &&
-      !p.damping.isZero(0.0)) {
+      !p.damping.is_zero()) {
     r.fail("model.convention",
            "\"riemann-liouville\" with damping order 2*alpha = " + format_value(2.0 * p.alpha) +
                " > 1 and initial.position != 0 is ill-posed: the Riemann-Liouville damping "
@@ -437,6 +577,23 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
                                              "accuracy of the fast history)");
     }
   }
+  if (const auto* n = r.find("method", "linear_solver")) {
+    p.linear_solver = r.string(*n, "method.linear_solver");
+    if (!parse_linear_solver(p.linear_solver)) {
+      const std::vector<std::string> solvers{"auto", "dense", "banded", "sparse"};
+      r.fail("method.linear_solver", "= \"" + p.linear_solver + "\" is not one of " +
+                                         joined(solvers) + suggestion(p.linear_solver, solvers));
+    }
+  }
+  if (const auto* n = r.find("method", "threads")) {
+    const long long threads = r.integer(*n, "method.threads");
+    if (threads < 0 || threads > 4096) {
+      r.fail("method.threads",
+             "= " + std::to_string(threads) + " must be in [0, 4096] (0: all cores)");
+    }
+    p.threads = static_cast<int>(threads);
+  }
+  if (p.chain) p.chain->threads = p.threads;
   // [output]
   if (const auto* n = r.find("output", "every")) {
     p.every = r.integer(*n, "output.every");
@@ -582,33 +739,87 @@ every = 1
 }
 
 namespace {
-nlohmann::json matrix_json(const Eigen::MatrixXd& m) {
-  nlohmann::json rows = nlohmann::json::array();
-  for (Eigen::Index i = 0; i < m.rows(); ++i) {
-    nlohmann::json row = nlohmann::json::array();
-    for (Eigen::Index j = 0; j < m.cols(); ++j) row.push_back(m(i, j));
-    rows.push_back(row);
-  }
-  return rows;
+bool is_constant(const Eigen::VectorXd& v) {
+  return v.size() > 0 && (v.array() == v[0]).all();
+}
+// The compact forms of a problem file: a diagonal (sparse storage) with equal entries is one
+// number, another diagonal d numbers; dense storage (or a non-diagonal sparse matrix, which a
+// problem file cannot produce) is written as d rows.
+std::optional<Eigen::VectorXd> stored_diagonal(const ModelMatrix& m) {
+  if (!m.is_sparse() || !m.is_diagonal()) return std::nullopt;
+  return Eigen::VectorXd(m.sparse().diagonal());
 }
 nlohmann::json vector_json(const Eigen::VectorXd& v) {
   nlohmann::json a = nlohmann::json::array();
   for (Eigen::Index i = 0; i < v.size(); ++i) a.push_back(v[i]);
   return a;
 }
-toml::array matrix_toml(const Eigen::MatrixXd& m) {
-  toml::array rows;
-  for (Eigen::Index i = 0; i < m.rows(); ++i) {
-    toml::array row;
-    for (Eigen::Index j = 0; j < m.cols(); ++j) row.push_back(m(i, j));
+nlohmann::json matrix_json(const ModelMatrix& m) {
+  if (const auto diagonal = stored_diagonal(m)) {
+    return is_constant(*diagonal) ? nlohmann::json((*diagonal)[0]) : vector_json(*diagonal);
+  }
+  const Eigen::MatrixXd dense = m.to_dense();
+  nlohmann::json rows = nlohmann::json::array();
+  for (Eigen::Index i = 0; i < dense.rows(); ++i) {
+    nlohmann::json row = nlohmann::json::array();
+    for (Eigen::Index j = 0; j < dense.cols(); ++j) row.push_back(dense(i, j));
     rows.push_back(row);
   }
   return rows;
+}
+// Initial data: the formula it was given as, one number for a constant vector (d ≥ 2), else d
+// numbers.
+nlohmann::json initial_json(const Eigen::VectorXd& v, const std::string& formula) {
+  if (!formula.empty()) return formula;
+  if (v.size() >= 2 && is_constant(v)) return v[0];
+  return vector_json(v);
 }
 toml::array vector_toml(const Eigen::VectorXd& v) {
   toml::array a;
   for (Eigen::Index i = 0; i < v.size(); ++i) a.push_back(v[i]);
   return a;
+}
+void insert_matrix(toml::table& t, const std::string& key, const ModelMatrix& m) {
+  if (const auto diagonal = stored_diagonal(m)) {
+    if (is_constant(*diagonal)) {
+      t.insert(key, (*diagonal)[0]);
+    } else {
+      t.insert(key, vector_toml(*diagonal));
+    }
+    return;
+  }
+  const Eigen::MatrixXd dense = m.to_dense();
+  toml::array rows;
+  for (Eigen::Index i = 0; i < dense.rows(); ++i) {
+    toml::array row;
+    for (Eigen::Index j = 0; j < dense.cols(); ++j) row.push_back(dense(i, j));
+    rows.push_back(row);
+  }
+  t.insert(key, rows);
+}
+void insert_initial(toml::table& t, const std::string& key, const Eigen::VectorXd& v,
+                    const std::string& formula) {
+  if (!formula.empty()) {
+    t.insert(key, formula);
+  } else if (v.size() >= 2 && is_constant(v)) {
+    t.insert(key, v[0]);
+  } else {
+    t.insert(key, vector_toml(v));
+  }
+}
+nlohmann::json chain_json(const ChainOptions& c) {
+  return {{"stiffness", c.stiffness},
+          {"cubic", c.cubic},
+          {"quartic", c.quartic},
+          {"onsite", c.onsite},
+          {"boundary", std::string(to_string(c.boundary))}};
+}
+toml::table chain_toml(const ChainOptions& c) {
+  return toml::table{{"stiffness", c.stiffness},
+                     {"cubic", c.cubic},
+                     {"quartic", c.quartic},
+                     {"onsite", c.onsite},
+                     {"boundary", std::string(to_string(c.boundary))}};
 }
 }  // namespace
 
@@ -625,16 +836,24 @@ nlohmann::json to_json(const ProblemSpec& p) {
         {"convention", p.convention},
         {"potential", p.potential},
         {"force", force}}},
-      {"initial", {{"position", vector_json(p.position)}, {"velocity", vector_json(p.velocity)}}},
+      {"initial",
+       {{"position", initial_json(p.position, p.position_formula)},
+        {"velocity", initial_json(p.velocity, p.velocity_formula)}}},
       {"time", {{"start", p.start}, {"end", p.end}, {"steps", p.steps}}},
       {"method",
        {{"scheme", p.scheme},
         {"newton_tolerance", p.newton_tolerance},
         {"newton_max_iterations", p.newton_max_iterations},
         {"history", p.history},
-        {"history_tolerance", p.history_tolerance}}},
+        {"history_tolerance", p.history_tolerance},
+        {"linear_solver", p.linear_solver},
+        {"threads", p.threads}}},
       {"output", {{"every", p.every}}},
   };
+  if (p.chain) {
+    j["model"].erase("potential");
+    j["model"]["chain"] = chain_json(*p.chain);
+  }
   if (!p.reference.empty()) j["reference"] = {{"position", p.reference}};
   if (!p.lagrangian.empty()) {
     j["model"] = {{"dim", p.dim},
@@ -653,15 +872,24 @@ nlohmann::json to_json(const ProblemSpec& p) {
 std::string to_toml(const ProblemSpec& p) {
   toml::array force;
   for (const auto& f : p.force) force.push_back(f);
-  toml::table model{{"dim", static_cast<int64_t>(p.dim)}, {"mass", matrix_toml(p.mass)},
-                    {"damping", matrix_toml(p.damping)},  {"alpha", p.alpha},
-                    {"convention", p.convention},         {"potential", p.potential}};
+  toml::table model{{"dim", static_cast<int64_t>(p.dim)}};
+  insert_matrix(model, "mass", p.mass);
+  insert_matrix(model, "damping", p.damping);
+  model.insert("alpha", p.alpha);
+  model.insert("convention", p.convention);
+  if (p.chain) {
+    model.insert("chain", chain_toml(*p.chain));
+  } else {
+    model.insert("potential", p.potential);
+  }
   if (!p.force.empty()) model.insert("force", force);
+  toml::table initial;
+  insert_initial(initial, "position", p.position, p.position_formula);
+  insert_initial(initial, "velocity", p.velocity, p.velocity_formula);
   toml::table root{
       {"name", p.name},
       {"model", model},
-      {"initial",
-       toml::table{{"position", vector_toml(p.position)}, {"velocity", vector_toml(p.velocity)}}},
+      {"initial", initial},
       {"time",
        toml::table{{"start", p.start}, {"end", p.end}, {"steps", static_cast<int64_t>(p.steps)}}},
       {"method",
@@ -669,7 +897,9 @@ std::string to_toml(const ProblemSpec& p) {
                    {"newton_tolerance", p.newton_tolerance},
                    {"newton_max_iterations", static_cast<int64_t>(p.newton_max_iterations)},
                    {"history", p.history},
-                   {"history_tolerance", p.history_tolerance}}},
+                   {"history_tolerance", p.history_tolerance},
+                   {"linear_solver", p.linear_solver},
+                   {"threads", static_cast<int64_t>(p.threads)}}},
       {"output", toml::table{{"every", static_cast<int64_t>(p.every)}}},
   };
   if (!p.reference.empty()) {

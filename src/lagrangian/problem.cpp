@@ -25,7 +25,7 @@ MechanicalModel mechanical_model(const ProblemSpec& spec) {
   m.damping = spec.damping;
   m.alpha = spec.alpha;
   m.convention = *parse_convention(spec.convention);
-  m.potential = std::make_shared<const ExpressionPotential>(spec.dim, spec.potential);
+  m.potential = make_potential(spec);  // the [model.chain] or the formula
   m.forcing = make_expression_forcing(spec.force);
   return m;
 }

@@ -240,6 +240,17 @@ TEST(Chain, FailureBetweenStoredRowsKeepsTheLastStep) {
 TEST(Chain, OptionsAreValidated) {
   const InitialValueProblem p = chain_problem(ChainSetup{});
   IntegratorOptions o;
+  // A forced dense factorisation of a 10^5-mass chain would need 240 GB: refused up front.
+  ChainSetup big;
+  big.d = 100000;
+  o.linear_solver = LinearSolver::kDense;
+  try {
+    Integrator integ(chain_problem(big), fvi_gl(), o);
+    ADD_FAILURE() << "accepted";
+  } catch (const ValidationError& e) {
+    EXPECT_NE(std::string(e.what()).find("d = 100000"), std::string::npos) << e.what();
+  }
+  o = IntegratorOptions{};
   o.save_every = 0;
   EXPECT_THROW(Integrator(p, fvi_gl(), o), ValidationError);
   o = IntegratorOptions{};

@@ -3,8 +3,13 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <numbers>
 #include <string>
 #include <vector>
+
+#include "fracvi/io/output.hpp"
+#include "fracvi/io/run.hpp"
 
 namespace fracvi {
 namespace {
@@ -49,8 +54,8 @@ TEST(ProblemFile, DefaultsAndMatrixForms) {
   const ProblemSpec p = parse(kBase);
   EXPECT_EQ(p.name, "test");
   EXPECT_EQ(p.dim, 2);
-  EXPECT_EQ(p.mass, Eigen::MatrixXd::Identity(2, 2));
-  EXPECT_EQ(p.damping, Eigen::Vector2d(0.1, 0.2).asDiagonal().toDenseMatrix());
+  EXPECT_EQ(p.mass.to_dense(), Eigen::MatrixXd::Identity(2, 2));
+  EXPECT_EQ(p.damping.to_dense(), Eigen::Vector2d(0.1, 0.2).asDiagonal().toDenseMatrix());
   EXPECT_EQ(p.velocity, Eigen::Vector2d::Zero());
   EXPECT_EQ(p.start, 0.0);
   EXPECT_EQ(p.steps, 20);
@@ -61,6 +66,7 @@ TEST(ProblemFile, DefaultsAndMatrixForms) {
   const ProblemSpec full = parse(with("mass = 1.0", "mass = [[2, 0.5], [0.5, 1]]"));
   EXPECT_EQ(full.mass(0, 1), 0.5);
   EXPECT_EQ(full.mass(0, 0), 2.0);
+  EXPECT_FALSE(full.mass.is_sparse());
 }
 
 TEST(ProblemFile, BuiltInProblemIsValid) {
@@ -101,8 +107,9 @@ TEST(ProblemFile, OverridesApplyBeforeValidation) {
 TEST(ProblemFile, TomlRoundTripReproducesTheSpec) {
   const ProblemSpec p = parse(with("mass = 1.0", "mass = [[2, 0.5], [0.5, 1]]"));
   const ProblemSpec q = parse_problem(to_toml(p), "round-trip");
-  EXPECT_EQ(q.mass, p.mass);
-  EXPECT_EQ(q.damping, p.damping);
+  EXPECT_EQ(q.mass.to_dense(), p.mass.to_dense());
+  EXPECT_FALSE(q.mass.is_sparse());
+  EXPECT_EQ(q.damping.to_dense(), p.damping.to_dense());
   EXPECT_EQ(q.alpha, p.alpha);
   EXPECT_EQ(q.potential, p.potential);
   EXPECT_EQ(q.position, p.position);
@@ -203,6 +210,242 @@ TEST(ProblemFile, JsonGoesThroughTheSameValidation) {
     EXPECT_NE(std::string(e.what()).find("dict: model.dampng: unknown key"), std::string::npos)
         << e.what();
   }
+}
+
+}  // namespace
+}  // namespace fracvi
+
+namespace fracvi {
+namespace {
+
+// A chain of the built-in FPUT potential with formula initial data.
+const std::string kChain = R"toml(
+name = "chain"
+[model]
+dim = 5
+mass = 1.0
+damping = 0.1
+alpha = 0.5
+[model.chain]
+quartic = 1.0
+[initial]
+position = "0.1*sin(pi*i/(d+1))"
+[time]
+end = 1.0
+steps = 10
+)toml";
+
+std::string chain_with(const std::string& from, const std::string& to) {
+  std::string s = kChain;
+  const auto pos = s.find(from);
+  EXPECT_NE(pos, std::string::npos) << from;
+  return s.replace(pos, from.size(), to);
+}
+
+void expect_error(const std::string& text, const std::vector<std::string>& needles,
+                  std::vector<std::string> overrides = {}) {
+  const std::string msg = error_of(text, std::move(overrides));
+  ASSERT_FALSE(msg.empty()) << "parsed without error: " << text;
+  EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+  for (const auto& needle : needles)
+    EXPECT_NE(msg.find(needle), std::string::npos) << "'" << needle << "' not in: " << msg;
+}
+
+TEST(ProblemFile, ScalarAndVectorMatricesAreStoredSparse) {
+  const ProblemSpec p = parse(kBase);  // mass = 1.0, damping = [0.1, 0.2]
+  ASSERT_TRUE(p.mass.is_sparse());
+  ASSERT_TRUE(p.damping.is_sparse());
+  EXPECT_EQ(p.mass.stored_entries(), 2);
+  EXPECT_EQ(p.damping.coeff(1, 1), 0.2);
+  EXPECT_EQ(p.damping.coeff(0, 1), 0.0);
+  // No damping: a sparse zero with no entries.
+  const ProblemSpec undamped = parse(with("damping = [0.1, 0.2]\n", ""));
+  EXPECT_TRUE(undamped.damping.is_sparse());
+  EXPECT_TRUE(undamped.damping.is_zero());
+  EXPECT_EQ(undamped.damping.rows(), 2);
+
+  // d = 10^5: a dense M would be 80 GB; the scalar and the vector stay O(d).
+  std::string damping = "[";
+  for (int i = 0; i < 100000; ++i) damping += i == 0 ? "0.01" : ", 0.01";
+  damping += "]";
+  const ProblemSpec big =
+      parse(chain_with("damping = 0.1", "damping = " + damping), {"model.dim=100000"});
+  EXPECT_EQ(big.dim, 100000);
+  ASSERT_TRUE(big.mass.is_sparse());
+  ASSERT_TRUE(big.damping.is_sparse());
+  EXPECT_EQ(big.mass.stored_entries(), 100000);
+  EXPECT_EQ(big.damping.coeff(99999, 99999), 0.01);
+  // Written back compactly: a constant diagonal is one number, the formula stays a formula.
+  const std::string toml = to_toml(big);
+  EXPECT_LT(toml.size(), 2000u) << toml.substr(0, 300);
+  EXPECT_NE(toml.find("mass = 1.0"), std::string::npos) << toml;
+  EXPECT_NE(toml.find("damping = 0.01"), std::string::npos) << toml;
+  EXPECT_NE(toml.find("position = '0.1*sin(pi*i/(d+1))'"), std::string::npos) << toml;
+  EXPECT_NE(toml.find("velocity = 0.0"), std::string::npos) << toml;
+}
+
+TEST(ProblemFile, DiagonalEntriesAreCheckedOneByOne) {
+  expect_error(with("mass = 1.0", "mass = -1.0"),
+               {"p.toml: model.mass = -1 must be positive", "positive definite"});
+  expect_error(with("mass = 1.0", "mass = [1.0, 0.0]"),
+               {"model.mass[2] = 0 must be positive", "positive definite"});
+  expect_error(with("damping = [0.1, 0.2]", "damping = [0.1, -0.2]"),
+               {"model.damping[2] = -0.2 must not be negative", "semidefinite"});
+  expect_error(with("damping = [0.1, 0.2]", "damping = -0.5"),
+               {"model.damping = -0.5 must not be negative"});
+  // Dense storage keeps the eigenvalue messages.
+  expect_error(with("damping = [0.1, 0.2]", "damping = [[0.1, 0.3], [0.3, 0.1]]"),
+               {"model.damping: is not positive semidefinite (smallest eigenvalue -0.2)"});
+}
+
+TEST(ProblemFile, ChainTableWithDefaults) {
+  const ProblemSpec p = parse(kChain);
+  ASSERT_TRUE(p.chain.has_value());
+  EXPECT_EQ(p.chain->dimension, 5);
+  EXPECT_EQ(p.chain->stiffness, 1.0);
+  EXPECT_EQ(p.chain->cubic, 0.0);
+  EXPECT_EQ(p.chain->quartic, 1.0);
+  EXPECT_EQ(p.chain->onsite, 0.0);
+  EXPECT_EQ(p.chain->boundary, ChainBoundary::kFixed);
+  EXPECT_EQ(p.chain->threads, 0);
+  EXPECT_FALSE(parse(kBase).chain.has_value());
+
+  const ProblemSpec q = parse(chain_with("quartic = 1.0", R"(stiffness = 2.0
+cubic = 0.5
+quartic = 0.25
+onsite = 0.1
+boundary = "periodic")"),
+                              {"method.threads=2"});
+  EXPECT_EQ(q.chain->stiffness, 2.0);
+  EXPECT_EQ(q.chain->cubic, 0.5);
+  EXPECT_EQ(q.chain->quartic, 0.25);
+  EXPECT_EQ(q.chain->onsite, 0.1);
+  EXPECT_EQ(q.chain->boundary, ChainBoundary::kPeriodic);
+  EXPECT_EQ(q.chain->threads, 2);
+  // --set reaches into the table, and creates it.
+  EXPECT_EQ(parse(kChain, {"model.chain.boundary=free"}).chain->boundary, ChainBoundary::kFree);
+  const ProblemSpec set =
+      parse(with("potential = \"x1^2/2 + x2^2/2\"\n", ""), {"model.chain.stiffness=3"});
+  ASSERT_TRUE(set.chain.has_value());
+  EXPECT_EQ(set.chain->stiffness, 3.0);
+
+  // prepare_run builds the chain potential; the options follow [method] and [output].
+  const PreparedRun run = prepare_run(parse(kChain, {"output.every=4", "method.threads=1"}));
+  const auto* chain = dynamic_cast<const ChainPotential*>(run.problem.model.potential.get());
+  ASSERT_NE(chain, nullptr);
+  EXPECT_EQ(chain->options().quartic, 1.0);
+  EXPECT_EQ(chain->options().threads, 1);
+  EXPECT_EQ(run.options.save_every, 4u);
+  EXPECT_EQ(run.options.threads, 1);
+  EXPECT_EQ(run.options.linear_solver, LinearSolver::kAuto);
+}
+
+TEST(ProblemFile, ChainErrorsNameTheKeyTheValueAndTheRule) {
+  expect_error(chain_with("quartic = 1.0", "quartc = 1.0"),
+               {"p.toml: model.chain.quartc: unknown key (did you mean 'quartic'?)",
+                "valid in [model.chain]: stiffness, cubic, quartic, onsite, boundary"});
+  expect_error(chain_with("quartic = 1.0", "boundary = \"circular\""),
+               {"model.chain.boundary = \"circular\" is not one of fixed, free, periodic"});
+  expect_error(chain_with("quartic = 1.0", "boundary = \"fixd\""), {"did you mean 'fixed'?"});
+  expect_error(chain_with("quartic = 1.0", "stiffness = \"stiff\""),
+               {"model.chain.stiffness", "must be a number", "a string"});
+  expect_error(chain_with("alpha = 0.5", "alpha = 0.5\npotential = \"x1^2\""),
+               {"model.potential and model.chain are both given"});
+  expect_error(chain_with("quartic = 1.0", "boundary = \"periodic\""),
+               {"model.dim = 2 is too small for model.chain.boundary = \"periodic\"", "3"},
+               {"model.dim=2"});
+  expect_error(chain_with("quartic = 1.0", "boundary = \"free\""),
+               {"model.dim = 1", "\"free\"", "at least 2"}, {"model.dim=1"});
+  expect_error(kBase, {"model.chain", "must be a table"}, {"model.chain=1"});
+  expect_error(chain_with("mass = 1.0\ndamping = 0.1\n", "lagrangian = \"xdot1^2/2\"\n"),
+               {"model.chain", "cannot be combined with model.lagrangian"});
+  expect_error(with("potential = \"x1^2/2 + x2^2/2\"\n", ""),
+               {"model.potential: missing", "[model.chain]"});
+}
+
+TEST(ProblemFile, InitialDataAsNumbersAndFormulas) {
+  const ProblemSpec p = parse(chain_with("[time]", "velocity = -0.5\n[time]"));
+  ASSERT_EQ(p.position.size(), 5);
+  for (int i : {1, 3, 5})
+    EXPECT_DOUBLE_EQ(p.position[i - 1], 0.1 * std::sin(std::numbers::pi * i / 6.0)) << i;
+  EXPECT_EQ(p.position_formula, "0.1*sin(pi*i/(d+1))");
+  EXPECT_EQ(p.velocity, Eigen::VectorXd::Constant(5, -0.5));
+  EXPECT_TRUE(p.velocity_formula.empty());
+  const ProblemSpec q = parse(with("position = [1.0, 0.0]", "position = 2"));
+  EXPECT_EQ(q.position, Eigen::Vector2d(2.0, 2.0));
+  EXPECT_EQ(parse(with("position = [1.0, 0.0]", "position = \"i*d\"")).position,
+            Eigen::Vector2d(2.0, 4.0));
+  // Arrays as before.
+  EXPECT_EQ(parse(kBase).position, Eigen::Vector2d(1.0, 0.0));
+
+  expect_error(
+      chain_with("position = \"0.1*sin(pi*i/(d+1))\"", "position = \"sin(pi*j)\""),
+      {"initial.position = \"sin(pi*j)\": unknown variable 'j'", "at column 8", "formula in i"});
+  expect_error(chain_with("position = \"0.1*sin(pi*i/(d+1))\"", "position = \"1 +* i\""),
+               {"initial.position = \"1 +* i\"", "column 4"});
+  expect_error(chain_with("position = \"0.1*sin(pi*i/(d+1))\"", "position = \"1/(i-2)\""),
+               {"initial.position = \"1/(i-2)\" is inf at i = 2", "finite"});
+  expect_error(chain_with("[time]", "velocity = [1.0]\n[time]"),
+               {"initial.velocity", "1 entries", "dim is 5"});
+  expect_error(chain_with("[time]", "velocity = true\n[time]"),
+               {"initial.velocity", "one number or a formula", "a boolean"});
+}
+
+TEST(ProblemFile, LinearSolverAndThreads) {
+  const ProblemSpec p = parse(kBase);
+  EXPECT_EQ(p.linear_solver, "auto");
+  EXPECT_EQ(p.threads, 0);
+  for (const char* name : {"auto", "dense", "banded", "sparse"}) {
+    const ProblemSpec q = parse(kBase + "[method]\nlinear_solver = \"" + name + "\"\n");
+    EXPECT_EQ(q.linear_solver, name);
+    EXPECT_EQ(to_string(make_integrator_options(q).linear_solver), name);
+  }
+  EXPECT_EQ(parse(kBase + "[method]\nthreads = 3\n").threads, 3);
+  EXPECT_EQ(make_integrator_options(parse(kBase, {"method.threads=2"})).threads, 2);
+  EXPECT_EQ(make_integrator_options(parse(kBase, {"output.every=7"})).save_every, 7u);
+
+  expect_error(kBase + "[method]\nlinear_solver = \"bandd\"\n",
+               {"method.linear_solver = \"bandd\" is not one of auto, dense, banded, sparse",
+                "did you mean 'banded'?"});
+  expect_error(kBase + "[method]\nlinear_solver = 1\n",
+               {"method.linear_solver", "must be a string"});
+  expect_error(kBase + "[method]\nthreads = -1\n",
+               {"method.threads = -1 must be in [0, 4096]", "all cores"});
+  expect_error(kBase + "[method]\nthreads = 1.5\n", {"method.threads", "must be an integer"});
+  expect_error(kBase + "[method]\nthread = 1\n", {"method.thread", "did you mean 'threads'?"});
+}
+
+TEST(ProblemFile, RoundTripOfTheNewKeys) {
+  const std::string text = chain_with("[time]", "velocity = \"0.01*i\"\n[time]") +
+                           "[method]\nlinear_solver = \"sparse\"\nthreads = 1\n[output]\nevery = "
+                           "5\n";
+  const ProblemSpec p =
+      parse(text, {"model.damping=[0.1, 0.2, 0.3, 0.4, 0.5]", "model.chain.onsite=0.5"});
+  const ProblemSpec q = parse_problem(to_toml(p), "round-trip");
+  EXPECT_EQ(to_json(q), to_json(p));
+  EXPECT_EQ(to_toml(q), to_toml(p));
+  ASSERT_TRUE(q.chain.has_value());
+  EXPECT_EQ(q.chain->onsite, 0.5);
+  EXPECT_EQ(q.chain->quartic, 1.0);
+  EXPECT_EQ(q.position, p.position);
+  EXPECT_EQ(q.velocity, p.velocity);
+  EXPECT_EQ(q.velocity_formula, "0.01*i");
+  EXPECT_TRUE(q.damping.is_sparse());
+  EXPECT_EQ(q.damping.to_dense(), p.damping.to_dense());
+  EXPECT_EQ(q.linear_solver, "sparse");
+  EXPECT_EQ(q.threads, 1);
+  EXPECT_EQ(q.every, 5);
+  const nlohmann::json j = to_json(p);
+  EXPECT_EQ(j["model"]["mass"], 1.0);
+  EXPECT_EQ(j["model"]["damping"], nlohmann::json({0.1, 0.2, 0.3, 0.4, 0.5}));
+  EXPECT_EQ(j["model"]["chain"]["boundary"], "fixed");
+  EXPECT_FALSE(j["model"].contains("potential"));
+  EXPECT_EQ(j["initial"]["position"], "0.1*sin(pi*i/(d+1))");
+  // The JSON form goes through the same reader.
+  EXPECT_EQ(to_json(parse_problem_json(j, "dict")), j);
+  // Arrays of a dense matrix stay dense.
+  const ProblemSpec dense = parse(with("mass = 1.0", "mass = [[2, 0], [0, 1]]"));
+  EXPECT_FALSE(parse_problem(to_toml(dense), "rt").mass.is_sparse());
 }
 
 }  // namespace

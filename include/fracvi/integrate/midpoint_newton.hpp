@@ -34,6 +34,11 @@
 
 namespace fracvi::internal {
 
+/// Largest d the dense path accepts (its three d × d matrices take 6 GB at this size); larger
+/// systems must state their structure (docs/large-systems.md). The constructor throws
+/// ValidationError beyond it.
+inline constexpr Eigen::Index kMaxDenseDimension = 16384;
+
 struct NewtonReport {
   Status status = Status::kSuccess;  ///< kSuccess, kNewtonFailure or kNonFinite
   int iterations = 0;
@@ -48,7 +53,8 @@ class MidpointNewton {
   /// factored here, once (Hessian taken at (0, t_hessian)), and solve() takes exactly one
   /// correction from the initial guess: the equation is linear, so that is its exact solution.
   /// solver picks the factorisation of J (kAuto: from the structure, see
-  /// SymmetricFactor); A must be symmetric.
+  /// SymmetricFactor); A must be symmetric. Throws ValidationError when the dense path would need
+  /// d > kMaxDenseDimension.
   MidpointNewton(ModelMatrix A, double h, const Potential* potential, const NewtonOptions& options,
                  double t_hessian = 0.0, LinearSolver solver = LinearSolver::kAuto);
 

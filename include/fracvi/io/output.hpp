@@ -2,6 +2,7 @@
 #pragma once
 
 #include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -11,9 +12,13 @@
 
 namespace fracvi {
 
-/// The initial value problem of a validated spec: the expression potential (with the force
-/// folded in as −f(t)·x), M, R, α, convention, initial data, grid.
+/// U of a validated spec: the built-in chain of [model.chain] (with the [method] threads) or the
+/// expression potential of model.potential.
+std::shared_ptr<const Potential> make_potential(const ProblemSpec& spec);
+/// The initial value problem of a validated spec: the potential (make_potential; the force enters
+/// as −f(t)·x), M, R, α, convention, initial data, grid.
 InitialValueProblem make_initial_value_problem(const ProblemSpec& spec);
+/// The [method] options (Newton, history, linear_solver, threads) and save_every = output.every.
 IntegratorOptions make_integrator_options(const ProblemSpec& spec);
 
 /// JSON value of a double; non-finite numbers become null (JSON has no NaN).
@@ -30,8 +35,9 @@ void write_file_atomically(const std::filesystem::path& file, const std::string&
 /// fully resolved problem (so the run can be reproduced from its output).
 nlohmann::json make_summary(const ProblemSpec& spec, const Solution& solution);
 
-/// Writes trajectory.csv (header `t,x1..xd,v1..vd,energy,dissipated,balance`, every
-/// spec.every-th row and always the last computed one, 17 significant digits), summary.json and
+/// Writes trajectory.csv (header `t,x1..xd,v1..vd,energy,dissipated,balance`, one line per
+/// stored row of the solution — every save_every-th step and the last computed one, as the
+/// integrator kept them — 17 significant digits), summary.json and
 /// problem.toml into `dir` (created if needed). Files are written to temporaries and renamed, so
 /// a crash never leaves a half-written file under the final name.
 void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,

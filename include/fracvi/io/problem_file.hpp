@@ -4,11 +4,15 @@
 //   [model]    dim, mass, damping, alpha | damping_order, convention, potential, force
 //              or dim, lagrangian, alpha (a general L(t, x, y, xdot, ydot, dx, dy); no mass,
 //              damping, potential or force then, and the Riemann-Liouville convention)
-//   [initial]  position, velocity   (optional when [boundary] is given)
+//   [model.chain] stiffness, cubic, quartic, onsite, boundary (the built-in FPUT chain, instead
+//              of potential)
+//   [initial]  position, velocity   (arrays, one number, or formulas in i, d; optional when
+//              [boundary] is given)
 //   [boundary] start, end           (x(a) = y(b), x(b) = y(a): the BVP of `fracvi bvp`)
 //   [time]     start, end, steps | step
-//   [method]   scheme, newton_tolerance, newton_max_iterations, history, history_tolerance
-//   [output]   every
+//   [method]   scheme, newton_tolerance, newton_max_iterations, history, history_tolerance,
+//              linear_solver, threads
+//   [output]   every                (the stride of the stored states)
 //   [reference] position   (optional exact solution: d formulas in t)
 //
 // Parsing validates everything before a single step is taken: unknown sections and keys are
@@ -19,11 +23,15 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include "fracvi/model/chain_potential.hpp"
+#include "fracvi/model/model_matrix.hpp"
 
 namespace fracvi {
 
@@ -33,25 +41,33 @@ class ProblemFileError : public std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
 
-/// A fully resolved, validated problem: every default filled in, matrices expanded.
+/// A fully resolved, validated problem: every default filled in.
 struct ProblemSpec {
   std::string source = "<built-in>";  ///< file name, for messages
   std::string name = "problem";
 
   // [model]
   Eigen::Index dim = 1;
-  Eigen::MatrixXd mass;               ///< M, symmetric positive definite
-  Eigen::MatrixXd damping;            ///< R, symmetric positive semidefinite
+  /// M, symmetric positive definite. A number (m·I) or an array of d numbers (the diagonal) is
+  /// stored sparse (ModelMatrix::identity / ::diagonal, O(d) memory), an array of d rows dense.
+  ModelMatrix mass;
+  ModelMatrix damping;                ///< R, symmetric positive semidefinite; the same forms
   double alpha = 0.5;                 ///< Lagrangian order; the damping order is 2α
   std::string convention = "caputo";  ///< "caputo" or "riemann-liouville"
-  std::string potential = "0";        ///< U(x1..xd, t)
-  std::vector<std::string> force;     ///< f(t), empty or d formulas
+  std::string potential = "0";        ///< U(x1..xd, t); "0" when `chain` is set
+  /// [model.chain]: the built-in FPUT chain (model/chain_potential.hpp) instead of `potential`;
+  /// dimension = dim, threads = the [method] threads.
+  std::optional<ChainOptions> chain;
+  std::vector<std::string> force;  ///< f(t), empty or d formulas
   /// L(t, x1.., y1.., xdot1.., ydot1.., dx1.., dy1..) (dx = D^alpha_- x, dy = D^alpha_+ y); when
   /// set, mass is empty, damping zero, potential "0", force empty, convention riemann-liouville.
   std::string lagrangian;
 
   // [initial]
   Eigen::VectorXd position, velocity;  ///< position is empty for a [boundary] file without it
+  /// The formulas in i (1-based index), d and pi the initial data were given as, or "" (given as
+  /// numbers); to_toml writes them back instead of d numbers.
+  std::string position_formula, velocity_formula;
 
   // [boundary]
   Eigen::VectorXd boundary_start, boundary_end;  ///< x(a) = y(b), x(b) = y(a); empty if absent
@@ -65,11 +81,13 @@ struct ProblemSpec {
   std::string scheme = "fvi-gl";
   double newton_tolerance = 1e-12;
   int newton_max_iterations = 50;
-  std::string history = "auto";      ///< "auto", "direct" or "fast" (the damping memory sum)
-  double history_tolerance = 1e-10;  ///< per-weight relative accuracy of the fast history
+  std::string history = "auto";        ///< "auto", "direct" or "fast" (the damping memory sum)
+  double history_tolerance = 1e-10;    ///< per-weight relative accuracy of the fast history
+  std::string linear_solver = "auto";  ///< "auto", "dense", "banded" or "sparse" (Newton matrix)
+  int threads = 0;                     ///< OpenMP threads over the degrees of freedom; 0 = all
 
   // [output]
-  long long every = 1;
+  long long every = 1;  ///< store every n-th step (IntegratorOptions::save_every) and the last
 
   // [reference]
   std::vector<std::string> reference;  ///< exact x(t), empty or d formulas in t
@@ -94,7 +112,9 @@ ProblemSpec load_problem(const std::filesystem::path& file,
 std::string_view default_problem_toml();
 
 /// The resolved problem as JSON (written into summary.json) and as TOML (a file that
-/// reproduces the run).
+/// reproduces the run). Matrices: a diagonal with equal entries is written as one number, another
+/// diagonal as an array of d numbers, a dense matrix as d rows. Initial data given as formulas
+/// is written as the formulas, a constant vector (d ≥ 2) as one number.
 nlohmann::json to_json(const ProblemSpec& spec);
 std::string to_toml(const ProblemSpec& spec);
 
