@@ -83,9 +83,10 @@ const InitialValueProblem& validated(const InitialValueProblem& problem, const M
   return problem;
 }
 
-// v = M⁻¹p and w = M⁻¹(R s): a dense M keeps its explicit inverse and M⁻¹R (one matrix–vector
-// product each, as before the structured path existed); a sparse M is factored once, banded or
-// sparse like the Newton matrix, and w costs one product with R and one solve.
+// v = M⁻¹p and w = M⁻¹(R' s) for the scaled damping R' = R h^{−2α}: a dense M keeps its explicit
+// inverse and M⁻¹R (one matrix–vector product each, as before the structured path existed); a
+// sparse M is factored once, banded or sparse like the Newton matrix, and w costs one product with
+// R and one solve.
 class MassSolver {
  public:
   MassSolver(const ModelMatrix& mass, const ModelMatrix& damping, LinearSolver solver)
@@ -100,9 +101,9 @@ class MassSolver {
       }
       const Eigen::MatrixXd m = mass.to_dense();
       const Eigen::LLT<Eigen::MatrixXd> llt(m);
-      minv_damping_ = llt.solve(damping.to_dense());
-      inverse_ = llt.solve(Eigen::MatrixXd::Identity(d, d));
-      inverse_ = (0.5 * (inverse_ + inverse_.transpose())).eval();
+      minv_damping_ = ModelMatrix(Eigen::MatrixXd(llt.solve(damping.to_dense())));
+      const Eigen::MatrixXd inverse = llt.solve(Eigen::MatrixXd::Identity(d, d));
+      inverse_ = ModelMatrix(Eigen::MatrixXd(0.5 * (inverse + inverse.transpose())));
       return;
     }
     auto pattern = std::make_shared<internal::SymmetricPattern>(d);
@@ -124,17 +125,17 @@ class MassSolver {
   // out = M⁻¹ p
   void inverse(const Eigen::Ref<const Eigen::VectorXd>& p, Eigen::Ref<Eigen::VectorXd> out) const {
     if (dense_) {
-      out.noalias() = inverse_ * p;
+      inverse_.multiply(p, out);
     } else {
       out = p;
       factor_->solve_in_place(out);
     }
   }
-  // out = M⁻¹ R s
+  // out = M⁻¹ R' s
   void inverse_damping(const Eigen::Ref<const Eigen::VectorXd>& s,
                        Eigen::Ref<Eigen::VectorXd> out) {
     if (dense_) {
-      out.noalias() = minv_damping_ * s;
+      minv_damping_.multiply(s, out);
     } else {
       damping_.multiply(s, scratch_);
       inverse(scratch_, out);
@@ -143,7 +144,7 @@ class MassSolver {
 
  private:
   bool dense_;
-  Eigen::MatrixXd inverse_, minv_damping_;
+  ModelMatrix inverse_, minv_damping_;  // dense path: M⁻¹ and M⁻¹R' (1 × 1 products inline)
   std::unique_ptr<internal::SymmetricFactor> factor_;
   ModelMatrix damping_;
   Eigen::VectorXd scratch_;
@@ -181,6 +182,7 @@ struct Integrator::Impl {
   double damping_scale;  // h^{−2α}
 
   ModelMatrix mass, damping;  // symmetrised M, R (dense or sparse, as given)
+  ModelMatrix force_matrix;   // R h^{−2α}: F = (R h^{−2α}) s in one pass over s
   MassSolver mass_solver;
   std::unique_ptr<History> history;
   internal::MidpointNewton newton;
@@ -227,7 +229,8 @@ struct Integrator::Impl {
         damping_scale(std::pow(h, -order)),
         mass(problem.model.mass.symmetric_part()),
         damping(problem.model.damping.symmetric_part()),
-        mass_solver(mass, damping, options.linear_solver),
+        force_matrix(damping.scaled(damping_scale)),
+        mass_solver(mass, force_matrix, options.linear_solver),
         newton(mass, h, problem.model.potential.get(), options.newton, problem.t0,
                options.linear_solver) {
     if (use_history) {
@@ -293,10 +296,8 @@ struct Integrator::Impl {
   // F = R h^{−2α} s and w = M⁻¹F for the history sum s of the latest pushed index.
   void damping_force(Eigen::VectorXd& f_out, Eigen::VectorXd& w_out) {
     history->sum(sum);
-    damping.multiply(sum, f_out);
-    f_out *= damping_scale;
+    force_matrix.multiply(sum, f_out);
     mass_solver.inverse_damping(sum, w_out);
-    w_out *= damping_scale;
   }
 
   void initial_state() {
@@ -311,7 +312,7 @@ struct Integrator::Impl {
       if (viscous) {
         // Lemma 5.3's backward difference needs x_{−1}; the consistent force at t_0 is R v_0.
         damping.multiply(problem.v0, force);
-        mass_solver.inverse_damping(problem.v0, w);
+        mass_solver.inverse(force, w);
       } else {
         damping_force(force, w);
       }
@@ -430,8 +431,7 @@ struct Integrator::Impl {
       history->sum(sum);
     }
     if (damped) {
-      damping.multiply(sum, force_next);
-      force_next *= damping_scale;
+      force_matrix.multiply(sum, force_next);
     }
     p = p_minus - (0.5 * h) * force_next;
     mass_solver.inverse(p, v_new);
@@ -441,7 +441,6 @@ struct Integrator::Impl {
     if (options.diagnostics) {
       if (damped) {  // M⁻¹F_{k+1}, for the (h²/8) FᵀM⁻¹F end terms of W
         mass_solver.inverse_damping(sum, w_next);
-        w_next *= damping_scale;
       }
       energy = 0.5 * v_new.dot(p) + potential_value(x_new, t_next);
       fv_next = force_next.dot(v_new);
@@ -532,8 +531,7 @@ struct Integrator::Impl {
       fy.setZero();
       if (damped) {
         hist->sum(s);
-        damping.multiply(s, fy);
-        fy *= damping_scale;
+        force_matrix.multiply(s, fy);
       }
       // ȳ_k = (y_{k+1} + y_k)/2 mirrors x̄ at t_{N−k−½}; ȳ_{k−1} mirrors x̄ at t_{N−k+½}.
       const double tau_known = half_time(n - kk - 1), tau_new = half_time(n - kk);

@@ -104,21 +104,16 @@ double ModelMatrix::max_asymmetry() const {
   return m;
 }
 
+ModelMatrix ModelMatrix::scaled(double s) const {
+  if (!is_sparse_) return ModelMatrix(Eigen::MatrixXd(s * dense_));
+  const Sparse scaled_sparse = s * sparse_;
+  return ModelMatrix(scaled_sparse);
+}
+
 ModelMatrix ModelMatrix::symmetric_part() const {
   if (!is_sparse_) return ModelMatrix(Eigen::MatrixXd(0.5 * (dense_ + dense_.transpose())));
   const Sparse sym = 0.5 * (sparse_ + Sparse(sparse_.transpose()));
   return ModelMatrix(sym);
-}
-
-void ModelMatrix::multiply(const Eigen::Ref<const Eigen::VectorXd>& x,
-                           Eigen::Ref<Eigen::VectorXd> y) const {
-  if (diagonal_.size() > 0) {
-    y.array() = diagonal_.array() * x.array();
-  } else if (is_sparse_) {
-    y.noalias() = sparse_ * x;
-  } else {
-    y.noalias() = dense_ * x;
-  }
 }
 
 ModelMatrix linear_combination(const ModelMatrix& a, double s, const ModelMatrix& b) {

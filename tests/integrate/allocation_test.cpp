@@ -142,7 +142,7 @@ TEST_F(NoAllocation, NonlinearChainD40) {
 }
 
 // Large chains on the structured path: diagonal sparse M and R, the FPUT chain's tridiagonal
-// Hessian, LAPACK's band Cholesky, and OpenMP threads in the fast history (K·d above
+// Hessian, LAPACK's tridiagonal Cholesky, and OpenMP threads in the fast history ((K + n0)·d above
 // kParallelWork) and in the chain's loops (d ≥ kChainParallelDofs). OpenMP starts its thread team
 // during set-up (set_threads / the chain's constructor), so the steps allocate nothing.
 InitialValueProblem large_chain(Eigen::Index d, std::size_t steps, int threads) {
@@ -166,7 +166,7 @@ TEST_F(NoAllocation, BandedChainWithThreadedFastHistory) {
   IntegratorOptions options;
   options.history = HistoryKind::kFast;
   options.threads = 2;
-  Integrator integ(large_chain(3000, 200, 2), fvi_gl(), options);
+  Integrator integ(large_chain(8000, 200, 2), fvi_gl(), options);
   ASSERT_EQ(integ.linear_solver(), LinearSolver::kBanded);
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
 }

@@ -82,8 +82,10 @@ class FastHistory final : public History {
 };
 
 /// Multiply–adds per step ((K + n0)·d: the recursions and the window) from which FastHistory
-/// splits the degrees of freedom over threads.
-inline constexpr Eigen::Index kParallelWork = 32768;
+/// splits the degrees of freedom over threads. Measured on the 2-core machine of bench/RESULTS.md
+/// (bench/fractional_chain, -march=native, K + n0 ≈ 80): two threads were slower than one at
+/// d = 1000 (0.80×), about even at d = 2000 (1.07×), ahead from d = 4000 (1.21×; 1.30× at 10^4).
+inline constexpr Eigen::Index kParallelWork = Eigen::Index{1} << 18;
 
 /// The max_lag used by FastHistory(order, …) for a capacity: the next power of two ≥
 /// capacity − 1 (at least 1), so that runs of similar length share one cached fit. A fit for a

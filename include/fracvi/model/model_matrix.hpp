@@ -79,11 +79,24 @@ class ModelMatrix {
   [[nodiscard]] double max_abs() const;
   /// max |a_ij − a_ji|.
   [[nodiscard]] double max_asymmetry() const;
+  /// s·A in the same storage.
+  [[nodiscard]] ModelMatrix scaled(double s) const;
   /// ½(A + Aᵀ) in the same storage.
   [[nodiscard]] ModelMatrix symmetric_part() const;
 
-  /// y = A x (y has size rows() on entry; no allocation).
-  void multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const;
+  /// y = A x (y has size rows() on entry; no allocation). Inline: small dense systems call it
+  /// several times per step.
+  void multiply(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) const {
+    if (diagonal_.size() > 0) {
+      y.array() = diagonal_.array() * x.array();
+    } else if (is_sparse_) {
+      y.noalias() = sparse_ * x;
+    } else if (dense_.rows() == 1) {
+      y(0) = dense_(0, 0) * x(0);  // d = 1: skip the general matrix–vector kernel's set-up
+    } else {
+      y.noalias() = dense_ * x;
+    }
+  }
 
  private:
   // A sparse matrix with only diagonal entries multiplies as a vector product (vectorised, no
