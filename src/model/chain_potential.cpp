@@ -164,51 +164,58 @@ std::vector<Potential::HessianEntry> ChainPotential::hessian_pattern() const {
   return pattern;
 }
 
-void ChainPotential::hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double,
-                                    std::span<double> values) const {
-  const Spring v{options_.stiffness, options_.cubic, options_.quartic};
-  const Eigen::Index d = options_.dimension;
-  const ChainBoundary boundary = options_.boundary;
-  const double c = options_.onsite;
-  double* diagonal = values.data();
-  double* upper = values.data() + d;  // (i, i+1)
-  internal::for_blocks(d, chain_threads(options_), [&](Eigen::Index lo, Eigen::Index hi) {
+namespace {
+
+// ∇²U entry by entry, shared by the sparse values and the dense matrix: diagonal(i, h_ii) for every
+// i, upper(i, h_{i,i+1}) for i < d − 1, and corner(h_{0,d−1}) when periodic. Split over `threads`.
+template <class Diagonal, class Upper, class Corner>
+void hessian_entries(const ChainOptions& o, const Eigen::Ref<const Eigen::VectorXd>& x, int threads,
+                     Diagonal&& diagonal, Upper&& upper, Corner&& corner) {
+  const Spring v{o.stiffness, o.cubic, o.quartic};
+  const Eigen::Index d = o.dimension;
+  internal::for_blocks(d, threads, [&](Eigen::Index lo, Eigen::Index hi) {
     by_position(
         lo, hi, d,
         [&](Eigen::Index i) {
-          const Neighbours n = neighbours(x, i, d, boundary);
-          double hii = c;
+          const Neighbours n = neighbours(x, i, d, o.boundary);
+          double hii = o.onsite;
           if (n.has_left) hii += v.stiffness(x[i] - n.left);
           if (n.has_right) hii += v.stiffness(n.right - x[i]);
-          diagonal[i] = hii;
-          if (i + 1 < d) upper[i] = -v.stiffness(x[i + 1] - x[i]);
+          diagonal(i, hii);
+          if (i + 1 < d) upper(i, -v.stiffness(x[i + 1] - x[i]));
         },
         [&](Eigen::Index i) {
           const double right = v.stiffness(x[i + 1] - x[i]);
-          diagonal[i] = c + v.stiffness(x[i] - x[i - 1]) + right;
-          upper[i] = -right;
+          diagonal(i, o.onsite + v.stiffness(x[i] - x[i - 1]) + right);
+          upper(i, -right);
         });
   });
-  if (boundary == ChainBoundary::kPeriodic)
-    values[static_cast<std::size_t>(2 * d - 1)] = -v.stiffness(x[0] - x[d - 1]);
+  if (o.boundary == ChainBoundary::kPeriodic) corner(-v.stiffness(x[0] - x[d - 1]));
+}
+
+}  // namespace
+
+void ChainPotential::hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double,
+                                    std::span<double> values) const {
+  // Pattern order: the diagonal, then (i, i+1), then the corner (hessian_pattern()).
+  const Eigen::Index d = options_.dimension;
+  double* diagonal = values.data();
+  double* upper = values.data() + d;
+  hessian_entries(
+      options_, x, chain_threads(options_), [&](Eigen::Index i, double h) { diagonal[i] = h; },
+      [&](Eigen::Index i, double h) { upper[i] = h; },
+      [&](double h) { values[static_cast<std::size_t>(2 * d - 1)] = h; });
 }
 
 void ChainPotential::hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double,
                              Eigen::Ref<Eigen::MatrixXd> H) const {
-  // The dense form of hessian_values() (small chains on the dense path); no allocation.
-  const Spring v{options_.stiffness, options_.cubic, options_.quartic};
+  // The dense form (small chains on the dense path): one thread, no allocation.
   const Eigen::Index d = options_.dimension;
   H.setZero();
-  for (Eigen::Index i = 0; i < d; ++i) {
-    const Neighbours n = neighbours(x, i, d, options_.boundary);
-    H(i, i) = options_.onsite;
-    if (n.has_left) H(i, i) += v.stiffness(x[i] - n.left);
-    if (n.has_right) H(i, i) += v.stiffness(n.right - x[i]);
-    if (i + 1 < d) H(i, i + 1) = H(i + 1, i) = -v.stiffness(x[i + 1] - x[i]);
-  }
-  if (options_.boundary == ChainBoundary::kPeriodic) {
-    H(0, d - 1) = H(d - 1, 0) = -v.stiffness(x[0] - x[d - 1]);
-  }
+  hessian_entries(
+      options_, x, 1, [&](Eigen::Index i, double h) { H(i, i) = h; },
+      [&](Eigen::Index i, double h) { H(i, i + 1) = H(i + 1, i) = h; },
+      [&](double h) { H(0, d - 1) = H(d - 1, 0) = h; });
 }
 
 std::shared_ptr<const Potential> make_chain_potential(const ChainOptions& options) {

@@ -44,20 +44,13 @@ Eigen::MatrixXd& ModelMatrix::dense() {
 
 const ModelMatrix::Sparse& ModelMatrix::sparse() const {
   if (!is_sparse_) {
-    throw std::logic_error("ModelMatrix::sparse(): the matrix is stored dense; use to_sparse()");
+    throw std::logic_error("ModelMatrix::sparse(): the matrix is stored dense");
   }
   return sparse_;
 }
 
 Eigen::MatrixXd ModelMatrix::to_dense() const {
   return is_sparse_ ? Eigen::MatrixXd(sparse_) : dense_;
-}
-
-ModelMatrix::Sparse ModelMatrix::to_sparse() const {
-  if (is_sparse_) return sparse_;
-  Sparse s = dense_.sparseView(0.0, 0.0);  // keeps every non-zero, however small
-  s.makeCompressed();
-  return s;
 }
 
 double ModelMatrix::coeff(Eigen::Index i, Eigen::Index j) const {

@@ -61,11 +61,10 @@ class ModelMatrix {
   [[nodiscard]] const Eigen::MatrixXd& dense() const;
   /// Mutable dense storage (same rule).
   [[nodiscard]] Eigen::MatrixXd& dense();
-  /// The sparse storage. Throws std::logic_error when the matrix is stored dense (use to_sparse()).
+  /// The sparse storage. Throws std::logic_error when the matrix is stored dense.
   [[nodiscard]] const Sparse& sparse() const;
-  /// Copies in the other storage (to_dense of a 10^5 × 10^5 matrix needs 80 GB: small d only).
+  /// A dense copy (of a 10^5 × 10^5 matrix that is 80 GB: small d only).
   [[nodiscard]] Eigen::MatrixXd to_dense() const;
-  [[nodiscard]] Sparse to_sparse() const;
 
   /// Entry (i, j) (0 outside the stored pattern).
   [[nodiscard]] double coeff(Eigen::Index i, Eigen::Index j) const;
