@@ -65,5 +65,6 @@ Command add_convergence_command(CLI::App& parent);
 Command add_plot_command(CLI::App& parent);
 Command add_residual_command(CLI::App& parent);
 Command add_bvp_command(CLI::App& parent);
+Command add_methods_command(CLI::App& parent);
 
 }  // namespace fracvi::cli

@@ -74,8 +74,8 @@ Command add_convergence_command(CLI::App& parent) {
       throw UsageError(e.what());
     }
 
-    std::printf("fracvi convergence: %s  (alpha = %g, scheme fvi-gl, declared order %d)\n",
-                spec.name.c_str(), spec.alpha, study.declared_order);
+    std::printf("fracvi convergence: %s  (alpha = %g, scheme %s, declared order %d)\n",
+                spec.name.c_str(), spec.alpha, spec.scheme.c_str(), study.declared_order);
     std::printf("reference: %s\n", study.reference.c_str());
     std::printf("%10s  %12s  %12s  %14s  %9s\n", "N", "h", "max error", "observed order",
                 "wall [s]");

@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
   std::vector<Command> commands{add_run_command(app),        add_convergence_command(app),
                                 add_plot_command(app),       add_weights_command(app),
                                 add_derivative_command(app), add_bvp_command(app),
-                                add_residual_command(app)};
+                                add_residual_command(app),   add_methods_command(app)};
 
   std::string known;
   bool is_known = false;

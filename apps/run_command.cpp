@@ -64,7 +64,7 @@ Command add_run_command(CLI::App& parent) {
     Solution solution;
     {
       ProgressBar progress(problem.steps, !opt->quiet);
-      solution = integrate(problem, fvi_gl(), options,
+      solution = integrate(problem, prepared.method, options,
                            [&progress](const StepView& s) { progress.update(s.k); });
     }
     write_run_output(dir, spec, solution);

@@ -39,6 +39,7 @@ from ._fracvi import ProblemError
 
 __all__ = [
     "Problem", "ProblemError", "Solution", "IntegrationError", "integrate", "write", "plot",
+    "methods",
     "gl_weights", "cq_weights", "midpoint", "delta_minus", "delta_plus", "frac_delta_minus",
     "frac_delta_plus", "convolve_past", "convolve_future", "rl_derivative",
     "rl_derivative_power",
@@ -420,6 +421,16 @@ def plot(solution, directory=None, *, show=None):
         import matplotlib.pyplot as plt
         plt.show()
     return figures
+
+
+# ---------------------------------------------------------------------------------------------
+# The method registry
+
+def methods():
+    """The time-stepping schemes, one dict per scheme (the registry `fracvi methods` prints):
+    name, order (declared, in words), stages, variational, mirror, exact_balance, applies_to,
+    stability (the bound), summary, reference. Pass a name as integrate(..., scheme=NAME)."""
+    return _fracvi.methods()
 
 
 # ---------------------------------------------------------------------------------------------

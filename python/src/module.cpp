@@ -38,11 +38,11 @@
 #include "fracvi/fractional/riemann_liouville.hpp"
 #include "fracvi/fractional/weights.hpp"
 #include "fracvi/integrate/integrator.hpp"
-#include "fracvi/integrate/method.hpp"
 #include "fracvi/io/output.hpp"
 #include "fracvi/io/problem_file.hpp"
 #include "fracvi/io/run.hpp"
 #include "fracvi/lagrangian/problem.hpp"
+#include "fracvi/schemes/registry.hpp"
 
 namespace py = pybind11;
 
@@ -226,9 +226,6 @@ StartValue parse_start(const std::string& name) {
 std::unique_ptr<Run> run_problem(const ProblemSpec& spec, bool mirror, bool diagnostics,
                                  double absolute_tolerance, const std::string& history,
                                  const std::string& start) {
-  const auto method = parse_method(spec.scheme);  // the reader accepts only known schemes
-  if (!method)
-    throw ProblemError(spec.source + ": method.scheme = \"" + spec.scheme + "\" is unknown");
   PreparedRun prepared;
   try {
     prepared = prepare_run(spec);
@@ -251,7 +248,7 @@ std::unique_ptr<Run> run_problem(const ProblemSpec& spec, bool mirror, bool diag
   run->spec = spec;
   // The potential and forcing are compiled formulas: no Python runs during the integration.
   py::gil_scoped_release release;
-  run->solution = integrate(problem, *method, options);
+  run->solution = integrate(problem, prepared.method, options);
   return run;
 }
 
@@ -531,6 +528,26 @@ void bind(py::module_& m) {
         return adopt_vector(cq_weights(*s, order, static_cast<std::size_t>(n)));
       },
       py::arg("order"), py::arg("n"), py::arg("scheme"));
+
+  // --- the method registry ---------------------------------------------------------------------
+  m.def("methods", []() {
+    py::list out;
+    for (const SchemeRow& r : scheme_table()) {
+      py::dict row;
+      row["name"] = r.name;
+      row["order"] = r.order;
+      row["stages"] = r.stages;
+      row["variational"] = r.variational;
+      row["mirror"] = r.mirror;
+      row["exact_balance"] = r.exact_balance;
+      row["applies_to"] = r.applies_to;
+      row["stability"] = r.stability;
+      row["summary"] = r.summary;
+      row["reference"] = r.reference;
+      out.append(row);
+    }
+    return out;
+  });
 
   // --- discrete operators (AllSequencs) ----------------------------------------------------
   m.def(

@@ -34,7 +34,7 @@ BAD = [
     ("convention missing", ("alpha = 0.5", "alpha = 0.6")),
     ("convention unknown", ("alpha = 0.5", 'alpha = 0.6\nconvention = "caputto"')),
     ("ill-posed", ("alpha = 0.5", 'alpha = 0.8\nconvention = "riemann-liouville"')),
-    ("scheme", ("[time]", '[method]\nscheme = "fvi-bdf2"\n[time]')),
+    ("scheme", ("[time]", '[method]\nscheme = "fvi-bdf9"\n[time]')),
     ("newton tolerance", ("[time]", "[method]\nnewton_tolerance = 0.0\n[time]")),
     ("newton iterations", ("[time]", "[method]\nnewton_max_iterations = 0\n[time]")),
     ("every", ("[time]", "[output]\nevery = 0\n[time]")),

@@ -4,10 +4,6 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
-#include <utility>
-
-#include "fracvi/integrate/integrator.hpp"
-#include "fracvi/io/run.hpp"
 
 namespace fracvi {
 
@@ -60,19 +56,8 @@ double max_error(const Solution& coarse, const Solution& fine) {
   return worst;
 }
 
-namespace {
-
-Solution run_with_steps(ProblemSpec spec, std::size_t steps) {
-  spec.steps = static_cast<long long>(steps);
-  PreparedRun run = prepare_run(std::move(spec));
-  run.options.mirror = false;  // the study measures x only; the mirror run would double the cost
-  run.options.save_every = 1;  // errors are taken on the whole grid, whatever output.every says
-  return integrate(run.problem, fvi_gl(), run.options);
-}
-
-}  // namespace
-
-ConvergenceStudy convergence_study(const ProblemSpec& spec, std::span<const std::size_t> steps,
+ConvergenceStudy convergence_study(const std::string& problem, double interval,
+                                   const RunWithSteps& run, std::span<const std::size_t> steps,
                                    std::span<const std::string> exact,
                                    std::size_t reference_steps) {
   if (steps.size() < 2) throw std::invalid_argument("--steps: give at least two step counts");
@@ -83,7 +68,7 @@ ConvergenceStudy convergence_study(const ProblemSpec& spec, std::span<const std:
     }
   }
   ConvergenceStudy study;
-  study.problem = spec.name;
+  study.problem = problem;
   std::vector<Expression> reference;
   Solution fine;
   if (!exact.empty()) {
@@ -102,17 +87,17 @@ ConvergenceStudy convergence_study(const ProblemSpec& spec, std::span<const std:
                                     std::to_string(n) + " is not a divisor)");
       }
     }
-    fine = run_with_steps(spec, reference_steps);
+    fine = run(reference_steps);
     if (!fine.ok()) throw std::runtime_error("the reference run failed: " + fine.message);
     study.reference = "fine run with " + std::to_string(reference_steps) + " steps";
   }
   std::vector<double> hs, errors;
   for (std::size_t n : steps) {
-    const Solution s = run_with_steps(spec, n);
+    const Solution s = run(n);
     study.declared_order = s.declared_order;
     ConvergenceRow row;
     row.steps = n;
-    row.h = (spec.end - spec.start) / static_cast<double>(n);
+    row.h = interval / static_cast<double>(n);
     row.status = s.ok() ? "success" : std::string(to_string(s.status));
     row.wall_seconds = s.wall_time_seconds;
     row.error = !s.ok()             ? std::numeric_limits<double>::quiet_NaN()

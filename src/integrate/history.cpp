@@ -15,8 +15,10 @@ bool is_local_order(double order) {
   return order == 0.0 || order == 1.0 || order == 2.0;
 }
 
-DirectHistory::DirectHistory(double order, Eigen::Index dimension, std::size_t capacity)
-    : order_(order), dimension_(dimension) {
+DirectHistory::DirectHistory(ConvolutionQuadrature quadrature, Eigen::Index dimension,
+                             std::size_t capacity)
+    : quadrature_(quadrature), dimension_(dimension) {
+  const double order = quadrature.order;
   if (!std::isfinite(order)) {
     throw std::invalid_argument("DirectHistory: order = " + std::to_string(order) +
                                 " must be finite");
@@ -25,7 +27,7 @@ DirectHistory::DirectHistory(double order, Eigen::Index dimension, std::size_t c
     throw std::invalid_argument("DirectHistory: dimension = " + std::to_string(dimension) +
                                 " and capacity = " + std::to_string(capacity) + " must be >= 1");
   }
-  weights_ = gl_weights(order, capacity);
+  weights_ = quadrature.weights(capacity);
   values_.assign(capacity * static_cast<std::size_t>(dimension), 0.0);
 }
 
@@ -47,19 +49,22 @@ void DirectHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
   }
 }
 
-LocalHistory::LocalHistory(double order, Eigen::Index dimension) {
-  if (!is_local_order(order)) {
-    throw std::invalid_argument("LocalHistory: order = " + std::to_string(order) +
-                                " must be 0, 1 or 2 (use DirectHistory otherwise)");
+LocalHistory::LocalHistory(ConvolutionQuadrature quadrature, Eigen::Index dimension)
+    : quadrature_(quadrature) {
+  if (!quadrature.is_local()) {
+    throw std::invalid_argument("LocalHistory: " + quadrature.describe() +
+                                " has no terminating weights (order must be 0, 1 or 2, GL or "
+                                "BDF2; use DirectHistory otherwise)");
   }
   if (dimension < 1) {
     throw std::invalid_argument("LocalHistory: dimension = " + std::to_string(dimension) +
                                 " must be >= 1");
   }
-  width_ = static_cast<int>(order) + 1;
-  // (1 − ζ)^0 = 1, (1 − ζ)^1 = 1 − ζ, (1 − ζ)^2 = 1 − 2ζ + ζ² (gl_weights gives the same, exactly).
-  const double rows[3][3] = {{1.0, 0.0, 0.0}, {1.0, -1.0, 0.0}, {1.0, -2.0, 1.0}};
-  for (int i = 0; i < 3; ++i) weights_[i] = rows[width_ - 1][i];
+  // δ^0 = 1, GL: (1 − ζ), (1 − ζ)², BDF2: (3/2 − 2ζ + ζ²/2)^{1,2}; exact dyadic coefficients
+  // (gl_weights gives the same GL rows, exactly).
+  const std::vector<double> w = quadrature.local_weights();
+  width_ = static_cast<int>(w.size());
+  for (int i = 0; i < width_; ++i) weights_[i] = w[static_cast<std::size_t>(i)];
   window_.setZero(dimension, width_);
 }
 
@@ -103,16 +108,18 @@ std::string_view to_string(HistoryKind kind) {
   return "unknown";
 }
 
-std::unique_ptr<History> make_history(HistoryKind kind, double order, Eigen::Index dimension,
-                                      std::size_t capacity, double tolerance) {
-  if (kind != HistoryKind::kDirect && is_local_order(order)) {
-    return std::make_unique<LocalHistory>(order, dimension);
+std::unique_ptr<History> make_history(HistoryKind kind, const ConvolutionQuadrature& quadrature,
+                                      Eigen::Index dimension, std::size_t capacity,
+                                      double tolerance) {
+  if (kind != HistoryKind::kDirect && quadrature.is_local()) {
+    return std::make_unique<LocalHistory>(quadrature, dimension);
   }
   if (kind == HistoryKind::kFast ||
-      (kind == HistoryKind::kAuto && fast_history_pays(capacity, dimension))) {
-    return make_fast_history(order, dimension, capacity, tolerance);
+      (kind == HistoryKind::kAuto && quadrature.scheme != CqScheme::kTrapezoidal &&
+       fast_history_pays(capacity, dimension))) {
+    return make_fast_history(quadrature.order, dimension, capacity, tolerance, quadrature.scheme);
   }
-  return std::make_unique<DirectHistory>(order, dimension, capacity);
+  return std::make_unique<DirectHistory>(quadrature, dimension, capacity);
 }
 
 }  // namespace fracvi

@@ -1,5 +1,8 @@
 #include "fracvi/io/problem_file.hpp"
 
+#include "fracvi/schemes/options.hpp"
+#include "fracvi/schemes/registry.hpp"
+
 #include <toml++/toml.h>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -14,6 +17,7 @@
 #include "fracvi/integrate/symmetric_factor.hpp"
 #include "fracvi/lagrangian/lagrangian.hpp"
 #include "fracvi/model/expression_potential.hpp"
+#include "fracvi/schemes/registry.hpp"
 
 namespace fracvi {
 
@@ -543,9 +547,11 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   // [method]
   if (const auto* n = r.find("method", "scheme")) {
     p.scheme = r.string(*n, "method.scheme");
-    if (p.scheme != "fvi-gl") {
-      r.fail("method.scheme", "= \"" + p.scheme + "\" is not a known scheme (available: fvi-gl)" +
-                                  suggestion(p.scheme, {"fvi-gl"}));
+    if (find_scheme(p.scheme) == nullptr) {
+      std::vector<std::string> known;
+      for (const SchemeInfo* info : registered_schemes()) known.emplace_back(info->name);
+      r.fail("method.scheme", "= \"" + p.scheme + "\" is not a known scheme (available: " +
+                                  scheme_names() + ")" + suggestion(p.scheme, known));
     }
   }
   if (const auto* n = r.find("method", "newton_tolerance")) {
@@ -571,7 +577,8 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   }
   if (const auto* n = r.find("method", "history_tolerance")) {
     p.history_tolerance = r.number(*n, "method.history_tolerance");
-    if (!(p.history_tolerance >= 1e-13 && p.history_tolerance <= 1e-3)) {
+    if (!(p.history_tolerance >= kMinHistoryTolerance &&
+          p.history_tolerance <= kMaxHistoryTolerance)) {
       r.fail("method.history_tolerance", "= " + format_value(p.history_tolerance) +
                                              " must be in [1e-13, 1e-3] (per-weight relative "
                                              "accuracy of the fast history)");

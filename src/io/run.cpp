@@ -1,5 +1,7 @@
 #include "fracvi/io/run.hpp"
 
+#include <cstddef>
+#include <span>
 #include <string>
 #include <utility>
 
@@ -22,8 +24,15 @@ PreparedRun prepare_run(ProblemSpec spec) {
     run.problem = spec.lagrangian.empty() ? make_initial_value_problem(spec)
                                           : make_lagrangian_initial_value_problem(spec);
     run.options = make_integrator_options(spec);
+    const auto method = parse_method(spec.scheme);
+    if (!method) {  // the reader accepts only registered names; a spec built in code may not
+      throw ProblemFileError(source + ": method.scheme = \"" + spec.scheme +
+                             "\" is not a known scheme (available: " + scheme_names() + ")");
+    }
+    run.method = *method;
     validate(run.problem);
     validate(run.options);
+    check_applicable(run.problem, run.method);
     run.spec = std::move(spec);
     return run;
   } catch (const ProblemFileError&) {
@@ -34,6 +43,20 @@ PreparedRun prepare_run(ProblemSpec spec) {
   } catch (const ValidationError& e) {
     throw ProblemFileError(source + ": " + e.what());
   }
+}
+
+ConvergenceStudy convergence_study(const ProblemSpec& spec, std::span<const std::size_t> steps,
+                                   std::span<const std::string> exact,
+                                   std::size_t reference_steps) {
+  const RunWithSteps run = [&spec](std::size_t n) {
+    ProblemSpec copy = spec;
+    copy.steps = static_cast<long long>(n);
+    PreparedRun prepared = prepare_run(std::move(copy));
+    prepared.options.mirror = false;  // the study measures x only; the mirror run doubles the cost
+    prepared.options.save_every = 1;  // errors are taken on the whole grid, whatever output.every
+    return integrate(prepared.problem, prepared.method, prepared.options);
+  };
+  return convergence_study(spec.name, spec.end - spec.start, run, steps, exact, reference_steps);
 }
 
 }  // namespace fracvi

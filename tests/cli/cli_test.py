@@ -256,6 +256,102 @@ class Run(unittest.TestCase):
         self.assertIn("model.alpha = 2", r.stderr)
 
 
+class Methods(unittest.TestCase):
+    """The method registry reaches the CLI, and docs/schemes.md is its table."""
+
+    def registry(self):
+        r = run("methods", "--json")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        return json.loads(r.stdout)
+
+    def test_registry_json(self):
+        rows = self.registry()
+        names = [row["name"] for row in rows]
+        self.assertEqual(names[:2], ["fvi-gl", "fvi-bdf2"])
+        for row in rows:
+            for key in ("order", "stages", "variational", "mirror", "exact_balance", "applies_to",
+                        "stability", "summary", "reference"):
+                self.assertIn(key, row)
+        r = run("methods")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        for name in names:
+            self.assertIn(name, r.stdout)
+
+    def test_docs_table_matches_the_registry(self):
+        docs = os.path.join(os.path.dirname(__file__), "..", "..", "docs", "schemes.md")
+        with open(docs, encoding="utf-8") as f:
+            lines = [l for l in f.read().split("<!-- registry -->")[1].splitlines()
+                     if l.startswith("| `")]
+        table = []
+        for line in lines:
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            table.append(cells)
+        expected = [[f"`{row['name']}`", row["order"], str(row["stages"]),
+                     "yes" if row["variational"] else "no", "yes" if row["mirror"] else "no",
+                     "yes" if row["exact_balance"] else "no", row["applies_to"],
+                     f"`{row['stability']}`"] for row in self.registry()]
+        self.assertEqual(table, expected, "docs/schemes.md is out of date: regenerate its table "
+                                          "from `fracvi methods --json`")
+
+    def test_scheme_reaches_run_and_convergence(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "bdf2")
+            r = run("run", "--out", out, "--no-plot", "--quiet", "--set", "method.scheme=fvi-bdf2",
+                    "--set", "time.steps=600", "--set", "time.end=6")
+            self.assertEqual(r.returncode, 0, r.stderr)
+            with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+                summary = json.load(f)
+            self.assertEqual(summary["method"], "fvi-bdf2")
+            self.assertEqual(summary["declared_order"], 2)
+            self.assertEqual(summary["problem"]["method"]["scheme"], "fvi-bdf2")
+            out_gl = os.path.join(tmp, "gl")
+            r = run("run", "--out", out_gl, "--no-plot", "--quiet", "--set", "time.steps=600",
+                    "--set", "time.end=6")
+            with open(os.path.join(out_gl, "summary.json"), encoding="utf-8") as f:
+                self.assertNotEqual(json.load(f)["final_position"], summary["final_position"])
+
+    def test_convergence_uses_the_scheme(self):
+        # Damped oscillator x'' + 0.5 x' + x = 0, x(0) = 1, x'(0) = 0 (alpha = 1/2), closed form.
+        w = "sqrt(15/16)"
+        exact = f"exp(-t/4)*(cos({w}*t) + sin({w}*t)/(4*{w}))"
+        text = ('name = "osc"\n[model]\ndim = 1\nmass = 1.0\ndamping = 0.5\nalpha = 0.5\n'
+                'potential = "x1^2/2"\n[initial]\nposition = [1.0]\nvelocity = [0.0]\n'
+                '[time]\nend = 10.0\nsteps = 100\n[method]\nscheme = "fvi-bdf2"\n')
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "osc.toml")
+            with open(path, "w", encoding="utf-8") as f:
+                f.write(text)
+            r = run("convergence", path, "--steps", "200,400,800,1600", "--reference", exact)
+            self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+            self.assertIn("scheme fvi-bdf2, declared order 2", r.stdout)
+            fitted = float(r.stdout.split("least-squares order:")[1].split()[0])
+            self.assertGreater(fitted, 1.9, r.stdout)
+
+    def test_unknown_scheme(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "never")
+            r = run("run", "--out", out, "--set", "method.scheme=fvi-bdf3")
+            self.assertEqual(r.returncode, 2)
+            self.assertEqual(r.stdout, "")
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            for needle in ("method.scheme", "fvi-bdf3", "fvi-gl", "fvi-bdf2"):
+                self.assertIn(needle, r.stderr)
+            self.assertFalse(os.path.exists(out))
+
+    def test_beyond_the_stability_bound_is_refused(self):
+        # Overdamped oscillator, alpha = 1/2: fvi-gl needs R h < 2 (here R h = 20 * 0.2 = 4).
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "never")
+            r = run("run", "--out", out, "--set", "model.alpha=0.5", "--set", "model.damping=20",
+                    "--set", "time.end=6", "--set", "time.steps=30")
+            self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+            self.assertEqual(r.stdout, "")
+            for needle in ("time.steps = 30", "stability bound of fvi-gl", "h < 0.1",
+                           "time.steps >= 61"):
+                self.assertIn(needle, r.stderr)
+            self.assertFalse(os.path.exists(out))
+
+
 class Help(unittest.TestCase):
     def test_help(self):
         for args in (["--help"], ["run", "--help"], ["weights", "--help"],

@@ -81,6 +81,7 @@ INSTANTIATE_TEST_SUITE_P(
 // without the end terms (h²/8)(F_kᵀM⁻¹F_k − F_0ᵀM⁻¹F_0) the balance is off by O(h²).
 TEST(ExactBalanceControl, TrapezoidalWorkWithoutEndTermsIsNotExact) {
   std::vector<double> hs, errs;
+  double scale = 0.0;  // max |E| + max |W|: the round-off scale of the balance
   for (const std::size_t n : {400ul, 800ul, 1600ul, 3200ul}) {
     const InitialValueProblem p = base(0.5, Convention::kCaputo, n);
     IntegratorOptions opts;
@@ -107,10 +108,13 @@ TEST(ExactBalanceControl, TrapezoidalWorkWithoutEndTermsIsNotExact) {
     std::printf("  N = %4zu: trapezoidal-only balance error %.3e (documented W: %.3e)\n", n, worst,
                 sol.max_balance_error);
     EXPECT_GT(worst, 1e3 * exact_tolerance(sol));
+    scale =
+        std::max(scale, sol.energy.cwiseAbs().maxCoeff() + sol.dissipated.cwiseAbs().maxCoeff());
   }
-  const double slope = test::loglog_slope(hs, errs);
+  const test::OrderFit fit = test::fit_order(hs, errs, {.floor = test::round_off_floor(scale)});
+  const double slope = fit.slope;
   std::printf("  its order: %.3f\n", slope);
-  EXPECT_NEAR(slope, 2.0, 0.1);
+  EXPECT_NEAR(slope, 2.0, 0.1) << fit.table();
 }
 
 // Nonlinear potentials: balance = Σ midpoint-quadrature defects = O(h²) on [0, T].
@@ -128,6 +132,7 @@ struct Duffing2 {
 void expect_second_order_balance(const std::shared_ptr<const Potential>& potential, double alpha,
                                  const char* label) {
   std::vector<double> hs, errs;
+  double scale = 0.0;  // max |E| + max |W|: the round-off scale of the balance
   for (const std::size_t n : {200ul, 400ul, 800ul, 1600ul, 3200ul}) {
     InitialValueProblem p = base(alpha, Convention::kCaputo, n);
     p.model.potential = potential;
@@ -137,12 +142,15 @@ void expect_second_order_balance(const std::shared_ptr<const Potential>& potenti
     ASSERT_TRUE(sol.ok()) << sol.message;
     hs.push_back(p.step_size());
     errs.push_back(sol.max_balance_error);
+    scale =
+        std::max(scale, sol.energy.cwiseAbs().maxCoeff() + sol.dissipated.cwiseAbs().maxCoeff());
   }
-  const double slope = test::loglog_slope(hs, errs);
+  const test::OrderFit fit = test::fit_order(hs, errs, {.floor = test::round_off_floor(scale)});
+  const double slope = fit.slope;
   std::printf("  %s: max balance error %.3e (h = %.2e) … %.3e (h = %.2e), order %.3f\n", label,
               errs.front(), hs.front(), errs.back(), hs.back(), slope);
   // Measured slopes 1.99–2.00; the tolerance allows for the next term of the defect expansion.
-  EXPECT_NEAR(slope, 2.0, 0.05);
+  EXPECT_NEAR(slope, 2.0, 0.05) << fit.table();
 }
 
 TEST(NonlinearBalance, SecondOrderPendulaAlphaHalf) {

@@ -4,7 +4,8 @@
 //  * the poles + branch-cut Laplace inversion for the linear fractional oscillator with nonzero
 //    initial data, validated to ~1e-14 in linear_oscillator_reference_test (and cross-checked
 //    against its series here).
-// Observed order = least-squares slope of log(max-grid error) against log h over 5 step sizes.
+// Observed order = least-squares slope of log(max-grid error) against log h over 5 step sizes
+// (test::fit_order, tests/support/order_fit.hpp: points on the round-off plateau would be masked).
 //
 // What first order means here. The GL sum is Lubich's backward-Euler convolution quadrature; its
 // symbol ((1 − e^{−iωh})/h)^β = (iω)^β (1 − βiωh/2 + O(h²)) gives
@@ -23,6 +24,7 @@
 #include <vector>
 
 #include "../support/linear_oscillator_reference.hpp"
+#include "../support/order_fit.hpp"
 #include "../support/power_law_solution.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/mechanical_model.hpp"
@@ -57,26 +59,11 @@ class CubicSpringPotential final : public Potential {
   double eps_;
 };
 
-/// Least-squares slope of log(err) against log(h).
-double loglog_slope(const std::vector<double>& h, const std::vector<double>& err) {
-  const auto n = static_cast<double>(h.size());
-  double sx = 0.0, sy = 0.0, sxx = 0.0, sxy = 0.0;
-  for (std::size_t i = 0; i < h.size(); ++i) {
-    const double lx = std::log(h[i]);
-    const double ly = std::log(err[i]);
-    sx += lx;
-    sy += ly;
-    sxx += lx * lx;
-    sxy += lx * ly;
-  }
-  return (n * sxy - sx * sy) / (n * sxx - sx * sx);
-}
-
 struct Study {
   std::vector<double> h;
   std::vector<double> err;
   std::vector<Solution> runs;
-  double slope = 0.0;
+  double slope = 0.0;  ///< observed order (test::fit_order; NaN when no valid fit)
 };
 
 /// Runs the integrator for every N and measures max_k ‖x_k − x(t_k)‖_∞ over the grid points
@@ -90,6 +77,7 @@ Study convergence_study(const std::string& label, const std::vector<std::size_t>
   IntegratorOptions options;
   options.mirror = false;  // the mirror run doubles the cost and is tested in mirror_test
   options.start = start;
+  double scale = 0.0;  // max ‖x(t)‖_∞ of the reference, for the round-off floor of the fit
   for (const std::size_t n : steps) {
     const InitialValueProblem problem = make_problem(n);
     Solution sol = integrate(problem, fvi_gl(), options);
@@ -99,20 +87,22 @@ Study convergence_study(const std::string& label, const std::vector<std::size_t>
     double err = 0.0;
     for (std::size_t j = 0; j <= points; ++j) {
       const auto k = static_cast<Eigen::Index>(j * stride);
-      const Eigen::VectorXd diff = sol.x.row(k).transpose() - exact(j, points);
-      err = std::max(err, diff.lpNorm<Eigen::Infinity>());
+      const Eigen::VectorXd reference = exact(j, points);
+      err = std::max(err, (sol.x.row(k).transpose() - reference).lpNorm<Eigen::Infinity>());
+      scale = std::max(scale, reference.lpNorm<Eigen::Infinity>());
     }
     s.h.push_back(problem.step_size());
     s.err.push_back(err);
     s.runs.push_back(std::move(sol));
   }
-  s.slope = loglog_slope(s.h, s.err);
+  const test::OrderFit fit = test::fit_order(s.h, s.err, {.floor = test::round_off_floor(scale)});
+  s.slope = fit.slope;
   std::printf("[ measured ] %s\n", label.c_str());
   for (std::size_t i = 0; i < s.h.size(); ++i) {
     std::printf("             N = %5zu  h = %.4e  max|x err| = %.4e  err/h = %.5f\n", steps[i],
                 s.h[i], s.err[i], s.err[i] / s.h[i]);
   }
-  std::printf("             observed order %.4f\n", s.slope);
+  std::printf("%s", fit.table().c_str());
   return s;
 }
 
@@ -244,7 +234,11 @@ TEST_P(PowerLawLinear, LeadingErrorIsTheGrunwaldLetnikovTruncation) {
     remainder.push_back(r);
     std::printf("             N = %5zu  max|err/h - E| / max|E| = %.4e\n", n, r / e_max);
   }
-  const double remainder_slope = loglog_slope(study.h, remainder);
+  // The remainder is a difference of O(1) quantities: its round-off scale is max|E|.
+  const test::OrderFit remainder_fit =
+      test::fit_order(study.h, remainder, {.floor = test::round_off_floor(e_max)});
+  const double remainder_slope = remainder_fit.slope;
+  std::printf("%s", remainder_fit.table("remainder").c_str());
   std::printf("             max|E| = %.6e, remainder order %.4f\n", e_max, remainder_slope);
   // Measured remainder at N = 1024: 1.4% (2a = 1/2) and 0.14% (2a = 3/2) of max|E|, halving with
   // h. 3% allows the coarser-grid constant without admitting a different leading term (a wrong

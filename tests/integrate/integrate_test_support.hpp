@@ -1,4 +1,5 @@
-// Shared helpers for the integrator tests: reference solutions, potentials, order fits.
+// Shared helpers for the integrator tests: reference solutions, potentials; observed orders come
+// from the one shared fit, test::fit_order (../support/order_fit.hpp).
 #pragma once
 
 #include <Eigen/Dense>
@@ -15,23 +16,11 @@
 #include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/model/potential.hpp"
 
+#include "../support/order_fit.hpp"
+
 namespace fracvi::test {
 
 inline constexpr double kEps = std::numeric_limits<double>::epsilon();
-
-/// Least-squares slope of log(err) against log(h).
-inline double loglog_slope(const std::vector<double>& h, const std::vector<double>& err) {
-  const auto n = static_cast<double>(h.size());
-  double sx = 0, sy = 0, sxx = 0, sxy = 0;
-  for (std::size_t i = 0; i < h.size(); ++i) {
-    const double lx = std::log(h[i]), ly = std::log(err[i]);
-    sx += lx;
-    sy += ly;
-    sxx += lx * lx;
-    sxy += lx * ly;
-  }
-  return (n * sxy - sx * sy) / (n * sxx - sx * sx);
-}
 
 /// Least-squares slope of y against x (plain linear fit).
 inline double linear_slope(const std::vector<double>& x, const std::vector<double>& y) {

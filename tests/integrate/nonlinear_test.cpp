@@ -63,7 +63,13 @@ Fit measure(bool damped, StartValue start, const std::vector<std::size_t>& steps
                 ex.back(), ev.back(),
                 static_cast<double>(sol.newton_iterations) / static_cast<double>(n));
   }
-  return {test::loglog_slope(hs, ex), test::loglog_slope(hs, ev), ex.back()};
+  // Round-off floors from the size of the reference solution (x columns, then v columns).
+  const double x_scale = ref.leftCols(ref.cols() / 2).cwiseAbs().maxCoeff();
+  const double v_scale = ref.rightCols(ref.cols() / 2).cwiseAbs().maxCoeff();
+  const test::OrderFit fx = test::fit_order(hs, ex, {.floor = test::round_off_floor(x_scale)});
+  const test::OrderFit fv = test::fit_order(hs, ev, {.floor = test::round_off_floor(v_scale)});
+  std::printf("%s%s", fx.table("x").c_str(), fv.table("v").c_str());
+  return {fx.slope, fv.slope, ex.back()};
 }
 
 TEST(NonlinearViscous, FirstOrderAgainstDopri5) {

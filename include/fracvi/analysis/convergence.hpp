@@ -7,13 +7,13 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/integrate/solution.hpp"
-#include "fracvi/io/problem_file.hpp"
 
 namespace fracvi {
 
@@ -47,11 +47,17 @@ struct ConvergenceStudy {
   double fitted_order = 0.0;  ///< least-squares slope over all rows
 };
 
-/// Runs `spec` with each step count (ascending) and measures the error against `exact` (d formulas
-/// in t) or, if that is empty, against a run with `reference_steps` steps (a multiple of every
-/// entry of `steps`). Throws std::invalid_argument for inconsistent arguments and
-/// std::runtime_error if the reference run fails.
-ConvergenceStudy convergence_study(const ProblemSpec& spec, std::span<const std::size_t> steps,
+/// One run of the studied problem on its fixed interval with the given number of steps, every
+/// step stored.
+using RunWithSteps = std::function<Solution(std::size_t steps)>;
+
+/// Runs `run` with each step count (ascending; h = interval / steps) and measures the error against
+/// `exact` (d formulas in t) or, if that is empty, against a run with `reference_steps` steps (a
+/// multiple of every entry of `steps`). `problem` names the study. Throws std::invalid_argument for
+/// inconsistent arguments and std::runtime_error if the reference run fails. The convergence study
+/// of a problem file is convergence_study(const ProblemSpec&, …) in fracvi/io/run.hpp.
+ConvergenceStudy convergence_study(const std::string& problem, double interval,
+                                   const RunWithSteps& run, std::span<const std::size_t> steps,
                                    std::span<const std::string> exact,
                                    std::size_t reference_steps = 0);
 

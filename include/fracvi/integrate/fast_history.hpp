@@ -54,7 +54,9 @@ class FastHistory final : public History {
            sizeof(double);
   }
   [[nodiscard]] Eigen::Index dimension() const override { return ring_.rows(); }
-  [[nodiscard]] double order() const override { return fit_->order; }
+  [[nodiscard]] ConvolutionQuadrature quadrature() const override {
+    return {fit_->scheme, fit_->order};
+  }
   /// OpenMP threads for push() and sum() (0 = OpenMP's default). They split the degrees of
   /// freedom; below kParallelWork multiply–adds per step one thread does everything (a parallel
   /// region costs about a microsecond).

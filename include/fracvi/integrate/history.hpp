@@ -2,14 +2,17 @@
 //
 // The damping sum of `DiscEqs` is Σ_{n=0}^{k} α_n Σ_{p=0}^{k−n} α_p x̃_{k−n−p} = Σ_{m=0}^{k} c_m
 // x̃_{k−m} with c = gl_weights(2α), the coefficients of (1 − ζ)^{2α} (DESIGN §3.1): one convolution.
+// Other schemes use other convolution quadratures (BDF2: the coefficients of δ_BDF2(ζ)^{2α}); a
+// History is keyed by its ConvolutionQuadrature (fractional/convolution_quadrature.hpp), the
+// generating function and the order, so that one interface serves every scheme.
 // A History receives x̃_0, x̃_1, … one at a time and returns that convolution for the latest index.
 // The mirror equation's forward-running sum Σ_{m=0}^{N−k} c_m ỹ_{k+m} is the same object fed in
 // reverse order (ỹ_N first).
 //
 //  * DirectHistory: stores every x̃ and sums directly, O(k·d) per step, O(N·d) memory.
-//  * LocalHistory: for integer damping orders 2α ∈ {0, 1, 2} the weights terminate
-//    ((1 − ζ)^{2α} is a polynomial), so only the last 2α + 1 values are kept. For α = 1/2 this is
-//    Lemma 5.3: Σ c_m x̃_{k−m} = x̃_k − x̃_{k−1}.
+//  * LocalHistory: for integer damping orders 2α ∈ {0, 1, 2} the GL and BDF2 weights terminate
+//    (δ(ζ)^{2α} is a polynomial), so only the last deg(δ)·2α + 1 values are kept. For GL and
+//    α = 1/2 this is Lemma 5.3: Σ c_m x̃_{k−m} = x̃_k − x̃_{k−1}.
 //  * FastHistory (fast_history.hpp): exact weights for a short window of recent lags and a
 //    sum-of-exponentials compression of the tail (DESIGN §6, docs/theory/fast_history.md):
 //    O((n0 + K)·d) per step and memory independent of N, K ~ log N · log(1/ε).
@@ -23,6 +26,8 @@
 #include <optional>
 #include <string_view>
 #include <vector>
+
+#include "fracvi/fractional/convolution_quadrature.hpp"
 
 namespace fracvi {
 
@@ -43,8 +48,10 @@ class History {
   /// Maximum number of pushes between clears.
   [[nodiscard]] virtual std::size_t capacity() const = 0;
   [[nodiscard]] virtual Eigen::Index dimension() const = 0;
-  /// The order 2α of the weights (1 − ζ)^{2α}.
-  [[nodiscard]] virtual double order() const = 0;
+  /// The weights: generating function and order (2α for the damping sums).
+  [[nodiscard]] virtual ConvolutionQuadrature quadrature() const = 0;
+  /// The order of the weights (quadrature().order).
+  [[nodiscard]] double order() const { return quadrature().order; }
   /// Bytes of state this history keeps (values, weights, recursions): N·d·8 for the direct sum,
   /// (K + 2n0 + 1)·d·8 plus the weights for the fast one.
   [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
@@ -53,11 +60,14 @@ class History {
   virtual void set_threads(int threads) { static_cast<void>(threads); }
 };
 
-/// All x̃ kept, exact convolution with c = gl_weights(order). O(k·d) per sum.
+/// All x̃ kept, exact convolution with the quadrature's weights. O(k·d) per sum.
 class DirectHistory final : public History {
  public:
-  /// Throws std::invalid_argument if order is not finite, dimension < 1 or capacity < 1.
-  DirectHistory(double order, Eigen::Index dimension, std::size_t capacity);
+  /// Throws std::invalid_argument if the order is not finite, dimension < 1 or capacity < 1.
+  DirectHistory(ConvolutionQuadrature quadrature, Eigen::Index dimension, std::size_t capacity);
+  /// Grünwald–Letnikov weights of `order`.
+  DirectHistory(double order, Eigen::Index dimension, std::size_t capacity)
+      : DirectHistory(grunwald_letnikov(order), dimension, capacity) {}
 
   void push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) override;
   void sum(Eigen::Ref<Eigen::VectorXd> out) const override;
@@ -68,23 +78,27 @@ class DirectHistory final : public History {
     return (weights_.size() + values_.size()) * sizeof(double);
   }
   [[nodiscard]] Eigen::Index dimension() const override { return dimension_; }
-  [[nodiscard]] double order() const override { return order_; }
+  [[nodiscard]] ConvolutionQuadrature quadrature() const override { return quadrature_; }
   [[nodiscard]] const std::vector<double>& weights() const { return weights_; }
 
  private:
-  double order_;
+  ConvolutionQuadrature quadrature_;
   Eigen::Index dimension_;
   std::vector<double> weights_;  // c_0 … c_{capacity−1}
   std::vector<double> values_;   // row-major capacity × d: x̃_j at values_[j·d]
   std::size_t size_ = 0;
 };
 
-/// Integer damping orders 2α ∈ {0, 1, 2}: the weights are the binomial row (1, −1)^… and vanish
-/// after index 2α, so only a window of 2α + 1 values is kept (unbounded capacity).
+/// Integer orders 2α ∈ {0, 1, 2} of GL or BDF2: the weights are the coefficients of the
+/// polynomial δ(ζ)^{2α} (ConvolutionQuadrature::local_weights()), so only a window of as many
+/// values is kept (unbounded capacity).
 class LocalHistory final : public History {
  public:
-  /// Throws std::invalid_argument unless order ∈ {0, 1, 2} and dimension ≥ 1.
-  LocalHistory(double order, Eigen::Index dimension);
+  /// Throws std::invalid_argument unless quadrature.is_local() and dimension ≥ 1.
+  LocalHistory(ConvolutionQuadrature quadrature, Eigen::Index dimension);
+  /// Grünwald–Letnikov weights of `order` ∈ {0, 1, 2}.
+  LocalHistory(double order, Eigen::Index dimension)
+      : LocalHistory(grunwald_letnikov(order), dimension) {}
 
   void push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) override;
   void sum(Eigen::Ref<Eigen::VectorXd> out) const override;
@@ -95,11 +109,12 @@ class LocalHistory final : public History {
     return static_cast<std::size_t>(window_.size()) * sizeof(double);
   }
   [[nodiscard]] Eigen::Index dimension() const override { return window_.rows(); }
-  [[nodiscard]] double order() const override { return static_cast<double>(width_ - 1); }
+  [[nodiscard]] ConvolutionQuadrature quadrature() const override { return quadrature_; }
 
  private:
-  int width_;               // 2α + 1
-  double weights_[3];       // c_0 … c_{2α}
+  ConvolutionQuadrature quadrature_;
+  int width_;               // number of nonzero weights (≤ 5)
+  double weights_[5];       // ω_0 … ω_{width−1}
   Eigen::MatrixXd window_;  // d × width, column (j mod width) holds x̃_j
   std::size_t size_ = 0;
 };
@@ -117,11 +132,17 @@ enum class HistoryKind {
 std::optional<HistoryKind> parse_history_kind(std::string_view name);
 std::string_view to_string(HistoryKind kind);
 
-/// The history for damping order `order` = 2α, able to take `capacity` pushes. `tolerance` is the
-/// per-weight relative accuracy ε of a FastHistory. Throws std::invalid_argument for invalid
-/// arguments (before any step).
-std::unique_ptr<History> make_history(HistoryKind kind, double order, Eigen::Index dimension,
-                                      std::size_t capacity, double tolerance = 1e-10);
+/// The history for the weights of `quadrature`, able to take `capacity` pushes. `tolerance` is
+/// the per-weight relative accuracy ε of a FastHistory. Throws std::invalid_argument for invalid
+/// arguments (before any step), e.g. a fast trapezoidal history (no fit for its oscillating tail).
+std::unique_ptr<History> make_history(HistoryKind kind, const ConvolutionQuadrature& quadrature,
+                                      Eigen::Index dimension, std::size_t capacity,
+                                      double tolerance = 1e-10);
+/// The same for the Grünwald–Letnikov weights of `order` (the paper's scheme).
+inline std::unique_ptr<History> make_history(HistoryKind kind, double order, Eigen::Index dimension,
+                                             std::size_t capacity, double tolerance = 1e-10) {
+  return make_history(kind, grunwald_letnikov(order), dimension, capacity, tolerance);
+}
 
 /// True if `order` is 0, 1 or 2 (the weights of (1 − ζ)^order terminate).
 bool is_local_order(double order);

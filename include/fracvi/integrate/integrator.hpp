@@ -1,25 +1,17 @@
-// The time stepper of `DiscEqs` (DESIGN §3.2, §4).
-//
-// For k = 0 … N−1 it solves for x_{k+1}
-//
-//   M (x_{k+1} − 2x_k + x_{k−1})/h² + F_k + ½∇U_f(x̄_k, t_{k+½}) + ½∇U_f(x̄_{k−1}, t_{k−½}) = 0,
-//   F_k = R h^{−2α} Σ_{m=0}^{k} c_m x̃_{k−m},   x̄_k = (x_k + x_{k+1})/2,   U_f = U − f(t)·x,
-//
-// in the equivalent momentum form p⁺_k = p⁻_k − h F_k (docs/theory/start_step.md §1):
-//
-//   M (x_{k+1} − x_k)/h + (h/2) ∇U_f(x̄_k, t_{k+½}) = p⁺_k,
-//
-// by Newton's method with Jacobian M + (h²/4) ∇²U(x̄_k) (x_{k+1} enters only through the kinetic
-// term and the midpoint gradient; the damping sum involves known x's only). For a constant
-// Hessian the matrix is factored once and each step is exactly one linear solve. The start x_1
-// comes from the discrete Legendre transform (start_step.md §2); velocities are v_k = M⁻¹p_k with
-// the grid momentum p_k = p⁻_k − (h/2)F_k.
+// The Integrator drives any registered scheme (DESIGN §4.1): it validates the problem, the method
+// and the options, refuses a problem the method does not apply to or whose step is beyond the
+// method's stability bound (before step 1), and owns what every scheme shares — the stored rows,
+// the observer, status and messages, stopping, and the energy diagnostics E_k, W_k, E_k + W_k − E_0
+// (the scheme keeps W_k, its own discrete energy account; solution.hpp). The scheme's equations
+// live in its Stepper (fracvi/schemes/stepper.hpp), one file each, listed in the method registry
+// (fracvi/schemes/registry.hpp). For the paper's scheme see src/schemes/cq_midpoint_stepper.hpp.
 //
 // The step loop does not allocate and does not throw: numerical failure ends the run with a
 // Status and a message, and everything computed so far is kept.
 //
 // Usage — one call:
-//   fracvi::Solution sol = fracvi::integrate(problem);            // fvi-gl, default options
+//   fracvi::Solution sol = fracvi::integrate(problem);                     // fvi-gl
+//   fracvi::Solution sol = fracvi::integrate(problem, fracvi::fvi_bdf2());  // any scheme
 // or stepped by hand (Boost.Odeint style):
 //   fracvi::Integrator integ(problem);
 //   while (integ.step() == fracvi::Status::kRunning) { use(integ.position()); }
@@ -31,59 +23,13 @@
 #include <memory>
 #include <utility>
 
-#include "fracvi/integrate/history.hpp"
-#include "fracvi/integrate/method.hpp"
+#include "fracvi/core/newton_options.hpp"
 #include "fracvi/integrate/solution.hpp"
-#include "fracvi/integrate/symmetric_factor.hpp"
 #include "fracvi/model/mechanical_model.hpp"
+#include "fracvi/schemes/options.hpp"
+#include "fracvi/schemes/registry.hpp"
 
 namespace fracvi {
-
-struct NewtonOptions {
-  /// Converged when ‖δ‖_∞ ≤ absolute_tolerance + relative_tolerance · max(‖x_{k+1}‖_∞, ‖x_k‖_∞),
-  /// δ the last Newton correction (already applied). Quadratic convergence makes the accepted
-  /// iterate far more accurate than the tolerance; tolerances near machine epsilon may fail to be
-  /// reached because of round-off in the residual.
-  double relative_tolerance = 1e-12;
-  double absolute_tolerance = 0.0;
-  int max_iterations = 25;  ///< per step; ≥ 1
-};
-
-/// How x_1 is obtained from (x_0, v_0).
-enum class StartValue {
-  /// p⁺_0 = M v_0 − (h/2) F_0 (discrete Legendre transform, start_step.md §2): keeps the order.
-  kDiscreteLegendre,
-  /// x_1 = x_0 + h v_0. First order; only for comparisons (it costs an order when R = 0).
-  kExplicitEuler,
-};
-
-struct IntegratorOptions {
-  NewtonOptions newton;
-  HistoryKind history = HistoryKind::kAuto;
-  /// Per-weight relative accuracy ε of the fast history (its sum-of-exponentials fit).
-  double history_tolerance = 1e-10;
-  /// Run the mirror equation backwards and report Solution::mirror_error (doubles the cost).
-  bool mirror = true;
-  /// Compute energy, dissipated work and balance every step (one potential value per step, three
-  /// for a time-dependent U, and a few dot products). When false those columns stay NaN and
-  /// Solution::max_balance_error is NaN.
-  bool diagnostics = true;
-  StartValue start = StartValue::kDiscreteLegendre;
-  /// Factorisation of the Newton matrix M + (h²/4)∇²U (and of M for v = M⁻¹p): kAuto uses a band
-  /// or sparse factorisation when M is stored sparse and the potential declares a sparse Hessian
-  /// (O(d) per step for chains), dense otherwise (symmetric_factor.hpp).
-  LinearSolver linear_solver = LinearSolver::kAuto;
-  /// Store every n-th state (and always the last one): a run of 10^6 steps of 1000 degrees of
-  /// freedom would otherwise keep 16 GB of positions and velocities. Diagnostics and the mirror
-  /// check still see every step (the mirror error is then the maximum over the stored rows).
-  std::size_t save_every = 1;
-  /// Threads for the work over degrees of freedom (fast-history recursions): 0 = OpenMP's default
-  /// (all cores, or OMP_NUM_THREADS); small systems run on one thread regardless.
-  int threads = 0;
-};
-
-/// Throws ValidationError naming the offending field.
-void validate(const IntegratorOptions& options);
 
 /// The state after a step, as the observer sees it (views into the solution storage; valid until
 /// the next step).
@@ -99,9 +45,9 @@ struct StepView {
 
 class Integrator {
  public:
-  /// Validates problem, method and options (throws ValidationError) and reserves all storage:
-  /// the solution's N+1 rows, the history, the Newton workspace and factorizations. Computes the
-  /// state at k = 0 (E_0, F_0, p_0 = M v_0).
+  /// Validates problem, method and options, checks that the method applies and that the step is
+  /// within its stability bound (check_applicable; throws ValidationError), and reserves all
+  /// storage: the solution's rows and the stepper's workspace. Computes the state at k = 0.
   explicit Integrator(InitialValueProblem problem, Method method = fvi_gl(),
                       IntegratorOptions options = {});
   ~Integrator();
@@ -145,7 +91,7 @@ class Integrator {
 
   /// The storage so far: all stored rows are allocated, rows not reached yet are NaN.
   [[nodiscard]] const Solution& solution() const;
-  /// The factorisation in use for the Newton matrix (kDense, kBanded or kSparse).
+  /// The factorisation in use for the scheme's implicit step (kDense, kBanded or kSparse).
   [[nodiscard]] LinearSolver linear_solver() const;
 
   /// Runs the backward mirror equation on the computed trajectory (if options().mirror and the run

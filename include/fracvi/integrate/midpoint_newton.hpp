@@ -27,7 +27,9 @@
 #include <utility>
 #include <vector>
 
-#include "fracvi/integrate/integrator.hpp"
+#include "fracvi/core/error.hpp"
+#include "fracvi/core/newton_options.hpp"
+#include "fracvi/core/status.hpp"
 #include "fracvi/integrate/symmetric_factor.hpp"
 #include "fracvi/model/model_matrix.hpp"
 #include "fracvi/model/potential.hpp"

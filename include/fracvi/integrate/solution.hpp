@@ -29,19 +29,10 @@
 #include <string_view>
 #include <vector>
 
+#include "fracvi/core/matrix.hpp"
+#include "fracvi/core/status.hpp"
+
 namespace fracvi {
-
-using RowMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-
-enum class Status {
-  kRunning,        ///< steps remain (hand-stepped Integrator only)
-  kSuccess,        ///< all N steps done
-  kNewtonFailure,  ///< Newton did not reach the tolerance within max_iterations
-  kNonFinite,      ///< a NaN or infinity appeared (residual, iterate, state or diagnostics)
-  kCallbackError,  ///< the potential or the forcing threw an exception (its what() is in message)
-};
-
-std::string_view to_string(Status status);
 
 struct Solution {
   Eigen::VectorXd t;              ///< t_k of the stored steps

@@ -20,6 +20,9 @@
 // value and the rule. docs/problem-file.md is the reference for every key.
 #pragma once
 
+#include "fracvi/core/newton_options.hpp"
+#include "fracvi/schemes/options.hpp"
+
 #include <Eigen/Core>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -79,10 +82,11 @@ struct ProblemSpec {
 
   // [method]
   std::string scheme = "fvi-gl";
-  double newton_tolerance = 1e-12;
-  int newton_max_iterations = 50;
-  std::string history = "auto";        ///< "auto", "direct" or "fast" (the damping memory sum)
-  double history_tolerance = 1e-10;    ///< per-weight relative accuracy of the fast history
+  double newton_tolerance = NewtonOptions{}.relative_tolerance;  // one default: core/newton_options
+  int newton_max_iterations = NewtonOptions{}.max_iterations;
+  std::string history = "auto";  ///< "auto", "direct" or "fast" (the damping memory sum)
+  double history_tolerance =
+      IntegratorOptions{}.history_tolerance;  ///< per-weight relative accuracy of the fast history
   std::string linear_solver = "auto";  ///< "auto", "dense", "banded" or "sparse" (Newton matrix)
   int threads = 0;                     ///< OpenMP threads over the degrees of freedom; 0 = all
 

@@ -2,15 +2,21 @@
 // before its first step, in one place, shared by the CLI (run, convergence) and the Python module.
 #pragma once
 
+#include <cstddef>
+#include <span>
+#include <string>
+
+#include "fracvi/analysis/convergence.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/io/problem_file.hpp"
 
 namespace fracvi {
 
-/// A validated initial value problem with its integrator options.
+/// A validated initial value problem with its scheme and integrator options.
 struct PreparedRun {
   ProblemSpec spec;
   InitialValueProblem problem;
+  Method method;  ///< [method] scheme
   IntegratorOptions options;
 };
 
@@ -18,7 +24,17 @@ struct PreparedRun {
 /// mechanical form (fracvi/lagrangian/problem.hpp) — and validates it with its options. Every
 /// failure is a ProblemFileError with one line "<source>: <what>": a boundary-value-only file (use
 /// fracvi bvp), a malformed formula (with its column), a Lagrangian that cannot be stepped
-/// forward, or a model/option rule.
+/// forward, a scheme that does not apply or a step beyond its stability bound, or a model/option
+/// rule.
 PreparedRun prepare_run(ProblemSpec spec);
+
+/// The convergence study (fracvi/analysis/convergence.hpp) of `spec`: runs it (prepare_run, every
+/// step stored, without the mirror run) with each step count (ascending) and measures the error
+/// against `exact` (d formulas in t) or, if that is empty, against a run with `reference_steps`
+/// steps (a multiple of every entry of `steps`). Throws std::invalid_argument for inconsistent
+/// arguments and std::runtime_error if the reference run fails.
+ConvergenceStudy convergence_study(const ProblemSpec& spec, std::span<const std::size_t> steps,
+                                   std::span<const std::string> exact,
+                                   std::size_t reference_steps = 0);
 
 }  // namespace fracvi

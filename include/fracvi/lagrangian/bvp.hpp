@@ -23,6 +23,8 @@
 // Measured iterations and costs: docs/theory/discrete_euler_lagrange.md §4.
 #pragma once
 
+#include "fracvi/core/newton_options.hpp"
+
 #include <Eigen/Dense>
 #include <Eigen/SparseCore>
 #include <cstddef>
@@ -56,7 +58,7 @@ enum class BvpLinearSolver {
 struct BvpOptions {
   /// Converged when max_k |x-equation_k|, |y-equation_k| ≤ residual_tolerance.
   double residual_tolerance = 1e-10;
-  int max_iterations = 30;  ///< Newton iterations, ≥ 1
+  int max_iterations = NewtonOptions{}.max_iterations;  ///< Newton iterations, ≥ 1 (one default)
   BvpLinearSolver linear_solver = BvpLinearSolver::kAuto;
   Eigen::Index dense_limit = 200;         ///< kAuto: unknowns 2(N−1)d up to this use dense LU
   Eigen::Index preconditioner_width = 8;  ///< GL lags kept in the banded preconditioner, ≥ 1

@@ -21,7 +21,6 @@
 #include <optional>
 #include <string>
 
-#include "fracvi/integrate/integrator.hpp"
 #include "fracvi/io/problem_file.hpp"
 #include "fracvi/lagrangian/bvp.hpp"
 #include "fracvi/lagrangian/lagrangian.hpp"

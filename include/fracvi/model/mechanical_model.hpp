@@ -18,6 +18,8 @@
 //    the dissipated work instead (solution.hpp).
 #pragma once
 
+#include "fracvi/core/error.hpp"
+
 #include <Eigen/Dense>
 #include <cstddef>
 #include <functional>
@@ -79,13 +81,6 @@ struct InitialValueProblem {
   [[nodiscard]] double step_size() const { return (t_end - t0) / static_cast<double>(steps); }
   /// t_k = t0 + k h, computed the same way everywhere (the mirror check relies on it).
   [[nodiscard]] double time(double k) const { return t0 + k * step_size(); }
-};
-
-/// Thrown for invalid input, before any step is taken. The message names the field, its value and
-/// the rule, e.g. "model.mass is not symmetric positive definite (smallest eigenvalue -0.3)".
-class ValidationError : public std::invalid_argument {
- public:
-  using std::invalid_argument::invalid_argument;
 };
 
 /// Checks the model alone (sizes, finiteness, symmetry, definiteness, α range, potential

@@ -1,0 +1,56 @@
+// The options of a time integration (any scheme). Defaults here are the defaults everywhere: the
+// problem-file reader, the resolved problem.toml, Python and the C++ API all start from
+// IntegratorOptions{} (tests/io/problem_file_test.cpp checks the reader against it).
+#pragma once
+
+#include <cstddef>
+
+#include "fracvi/core/newton_options.hpp"
+#include "fracvi/integrate/history.hpp"
+#include "fracvi/integrate/symmetric_factor.hpp"
+
+namespace fracvi {
+
+/// How x_1 is obtained from (x_0, v_0).
+enum class StartValue {
+  /// The scheme's own start from the discrete Legendre transform (for the midpoint FVIs
+  /// p⁺_0 = M v_0 − (h/2) F_0, start_step.md §2): keeps the order.
+  kDiscreteLegendre,
+  /// x_1 = x_0 + h v_0. First order; only for comparisons (it costs an order when R = 0).
+  kExplicitEuler,
+};
+
+/// Bounds of IntegratorOptions::history_tolerance (the per-weight relative accuracy ε of the
+/// sum-of-exponentials fit: below 1e-13 the fit is limited by round-off, above 1e-3 it is useless).
+inline constexpr double kMinHistoryTolerance = 1e-13;
+inline constexpr double kMaxHistoryTolerance = 1e-3;
+
+struct IntegratorOptions {
+  NewtonOptions newton;
+  HistoryKind history = HistoryKind::kAuto;
+  /// Per-weight relative accuracy ε of the fast history (its sum-of-exponentials fit).
+  double history_tolerance = 1e-10;
+  /// Run the mirror equation backwards and report Solution::mirror_error (doubles the cost).
+  bool mirror = true;
+  /// Compute energy, dissipated work and balance every step (one potential value per step, three
+  /// for a time-dependent U, and a few dot products). When false those columns stay NaN and
+  /// Solution::max_balance_error is NaN.
+  bool diagnostics = true;
+  StartValue start = StartValue::kDiscreteLegendre;
+  /// Factorisation of the Newton matrix M + (h²/4)∇²U (and of M for v = M⁻¹p): kAuto uses a band
+  /// or sparse factorisation when M is stored sparse and the potential declares a sparse Hessian
+  /// (O(d) per step for chains), dense otherwise (symmetric_factor.hpp).
+  LinearSolver linear_solver = LinearSolver::kAuto;
+  /// Store every n-th state (and always the last one): a run of 10^6 steps of 1000 degrees of
+  /// freedom would otherwise keep 16 GB of positions and velocities. Diagnostics and the mirror
+  /// check still see every step (the mirror error is then the maximum over the stored rows).
+  std::size_t save_every = 1;
+  /// Threads for the work over degrees of freedom (fast-history recursions): 0 = OpenMP's default
+  /// (all cores, or OMP_NUM_THREADS); small systems run on one thread regardless.
+  int threads = 0;
+};
+
+/// Throws ValidationError naming the offending field.
+void validate(const IntegratorOptions& options);
+
+}  // namespace fracvi

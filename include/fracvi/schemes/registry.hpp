@@ -1,0 +1,109 @@
+// The method registry: one table of every time-stepping scheme fracvi has (DESIGN §4.1).
+//
+// A scheme is one stepper file (src/schemes/<name>.cpp) that defines its SchemeInfo row, plus one
+// line in src/schemes/registry.cpp. Everything that integrates — the Integrator, `fracvi run`,
+// `fracvi convergence`, `fracvi methods`, Python's fracvi.methods() and the docs table of schemes
+// (checked against `fracvi methods --json` by scripts/check-docs.py) — reads this table.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "fracvi/model/mechanical_model.hpp"
+#include "fracvi/schemes/options.hpp"
+#include "fracvi/schemes/stepper.hpp"
+
+namespace fracvi {
+
+/// The stability bound of a scheme on the linear test problem M x'' + R D^{2α} x + K x = 0 for a
+/// given problem (docs/theory/stability.md).
+struct StabilityBound {
+  /// The problem's step h satisfies the bound.
+  bool stable = true;
+  /// The largest stable step (strict: h < largest_step); +∞ when every h is stable, 0 when none.
+  double largest_step = 0.0;
+  /// The bound as an inequality with this problem's numbers, e.g.
+  /// "lambda_max(M^-1 R) (h/2)^(2-2alpha) = 1.43 must be < 1".
+  std::string rule;
+};
+
+struct SchemeInfo {
+  std::string_view name;        ///< the registry key, e.g. "fvi-bdf2"
+  std::string_view summary;     ///< one line
+  std::string_view reference;   ///< where the scheme comes from
+  std::string_view order_rule;  ///< declared order in words, e.g. "1 (2 when R = 0)"
+  int stages = 1;               ///< unknown states per step
+  bool variational = true;      ///< derived from a (restricted) discrete variational principle
+  bool has_mirror = false;      ///< the backward mirror run exists (Solution::mirror_error)
+  /// E_k + W_k − E_0 = 0 to round-off for quadratic, time-independent U (any R, α, f).
+  bool exact_balance = false;
+  std::string_view applies_to;      ///< where it applies, in words ("every model", "2α = 1")
+  std::string_view stability_rule;  ///< the stability bound in words
+  /// The order the scheme reaches on smooth solutions of this model.
+  int (*declared_order)(const MechanicalModel& model) = nullptr;
+  /// "" when the scheme applies to the problem, else the rule it breaks (one sentence).
+  std::string (*applicability)(const InitialValueProblem& problem) = nullptr;
+  StabilityBound (*stability)(const InitialValueProblem& problem) = nullptr;
+  /// A stepper for a validated problem (references `problem`, which must outlive it).
+  std::unique_ptr<Stepper> (*make_stepper)(const InitialValueProblem& problem,
+                                           const IntegratorOptions& options) = nullptr;
+};
+
+/// Every registered scheme, in the order `fracvi methods` prints them.
+std::span<const SchemeInfo* const> registered_schemes();
+
+/// The registered scheme called `name`, or null.
+const SchemeInfo* find_scheme(std::string_view name);
+
+/// "fvi-gl, fvi-bdf2" (for messages).
+std::string scheme_names();
+
+/// The registry as text columns, one entry per scheme with the keys name, order, stages,
+/// variational, mirror, exact_balance, applies_to, stability, summary, reference (what
+/// `fracvi methods --json` prints and Python's fracvi.methods() returns; values are strings,
+/// integers or booleans).
+struct SchemeRow {
+  std::string name, order, applies_to, stability, summary, reference;
+  int stages = 1;
+  bool variational = true, mirror = false, exact_balance = false;
+};
+std::vector<SchemeRow> scheme_table();
+
+/// A Method names a registered scheme; the default is the paper's `fvi-gl`.
+class Method {
+ public:
+  Method();
+  explicit Method(const SchemeInfo& info) : info_(&info) {}
+
+  [[nodiscard]] std::string_view name() const { return info_->name; }
+  [[nodiscard]] const SchemeInfo& info() const { return *info_; }
+  /// The order the scheme is designed to reach on smooth solutions of `model`.
+  [[nodiscard]] int declared_order(const MechanicalModel& model) const {
+    return info_->declared_order(model);
+  }
+  friend bool operator==(const Method& a, const Method& b) { return a.info_ == b.info_; }
+
+ private:
+  const SchemeInfo* info_;
+};
+
+/// The paper's scheme, `DiscEqs` (Grünwald–Letnikov memory).
+Method fvi_gl();
+/// The BDF2 convolution-quadrature FVI (docs/theory/fvi_bdf2.md).
+Method fvi_bdf2();
+
+/// The registered scheme called `name`, or nullopt.
+std::optional<Method> parse_method(std::string_view name);
+
+/// Throws ValidationError when `method` does not apply to `problem` or `problem`'s step is beyond
+/// the method's stability bound. The message names the field (method.scheme or time.steps), the
+/// value and the rule, and for the stability bound the largest stable step and the smallest
+/// stable number of steps.
+void check_applicable(const InitialValueProblem& problem, const Method& method);
+
+}  // namespace fracvi

@@ -1,0 +1,81 @@
+// One time-stepping scheme behind one interface (DESIGN §4.1; Boost.Odeint's steppers and
+// GeometricIntegrators.jl's integrator types are the models, STYLE.md).
+//
+// A Stepper knows its scheme's equations and nothing else: it is constructed from a validated
+// problem (reserving all its workspace), holds the state at step k (position x_k, velocity v_k,
+// momentum p_k = M v_k), advances it by one step, and keeps the energy account of its own
+// discretisation — the cumulative work W_k of the damping, of f and of the explicit time
+// dependence of U, so that E_k + W_k − E_0 is the balance error (solution.hpp). A scheme with a
+// mirror equation (the restricted variational principle's y-equation) can run it backwards over a
+// finished trajectory.
+//
+// The Integrator (fracvi/integrate/integrator.hpp) owns everything else, for every scheme:
+// storage of the rows, the observer, status and messages, stopping, energy and balance.
+//
+// step() is noexcept and does not allocate: a user callback that throws (potential, forcing) is
+// caught here, once for all schemes, and reported as Status::kCallbackError.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstddef>
+#include <limits>
+#include <string_view>
+
+#include "fracvi/core/status.hpp"
+#include "fracvi/model/mechanical_model.hpp"
+#include "fracvi/schemes/options.hpp"
+
+namespace fracvi {
+
+struct Solution;
+
+class Stepper {
+ public:
+  virtual ~Stepper() = default;
+  Stepper(const Stepper&) = delete;
+  Stepper& operator=(const Stepper&) = delete;
+
+  /// Advances k → k+1. kSuccess when the step was taken, otherwise the failure status; the state
+  /// then still holds step k and failure_message() says why (the Integrator adds step and time).
+  Status step() noexcept;
+
+  /// The state at the current step k (valid until the next step).
+  [[nodiscard]] virtual const Eigen::VectorXd& position() const = 0;
+  [[nodiscard]] virtual const Eigen::VectorXd& velocity() const = 0;
+  /// p_k = M v_k as the scheme computes it (the energy is ½ v_kᵀ p_k + U(x_k, t_k)).
+  [[nodiscard]] virtual const Eigen::VectorXd& momentum() const = 0;
+  /// W_k, cumulative (0 at k = 0); NaN when the scheme was built without diagnostics.
+  [[nodiscard]] virtual double work() const = 0;
+
+  /// The backward run of the scheme's mirror equation on a finished run: max_k ‖y_k − x_{N−k}‖_∞
+  /// over the stored rows of `solution`. NaN when the scheme has none or the backward run fails.
+  [[nodiscard]] virtual double mirror_error(const Solution& solution, std::size_t rows) const;
+
+  /// The factorisation of the implicit step: kDense, kBanded or kSparse.
+  [[nodiscard]] virtual LinearSolver linear_solver() const = 0;
+  /// Bytes kept by the memory of the damping term (0 without one).
+  [[nodiscard]] virtual std::size_t history_bytes() const { return 0; }
+  /// Newton iterations of the last step (1 for a linear problem; 0 for an explicit step).
+  [[nodiscard]] int last_iterations() const { return last_iterations_; }
+
+  /// Why the last step failed (empty after a successful step), and the exception text of a
+  /// throwing callback (else empty).
+  [[nodiscard]] const char* failure_message() const { return message_.data(); }
+  [[nodiscard]] const char* failure_detail() const { return detail_.data(); }
+
+ protected:
+  Stepper() = default;
+  /// The scheme's step. May throw what a user callback throws; must not allocate.
+  virtual Status advance() = 0;
+  /// Records a failure (printf-style cause) and returns its status.
+  Status fail(Status status, const char* format, ...) noexcept;
+  void set_iterations(int iterations) noexcept { last_iterations_ = iterations; }
+
+ private:
+  std::array<char, 200> message_{};
+  std::array<char, 200> detail_{};
+  int last_iterations_ = 0;
+};
+
+}  // namespace fracvi

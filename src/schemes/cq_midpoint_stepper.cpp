@@ -1,0 +1,328 @@
+#include "cq_midpoint_stepper.hpp"
+
+#include <boost/math/special_functions/gamma.hpp>
+#include <cmath>
+#include <limits>
+
+#include "fracvi/integrate/solution.hpp"
+
+namespace fracvi::internal {
+
+namespace {
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+}  // namespace
+
+CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
+                                     const IntegratorOptions& options, CqScheme generating_function,
+                                     MemoryStart memory_start)
+    : problem_(problem),
+      options_(options),
+      damping_sum_{generating_function, problem.model.damping_order()},
+      memory_start_(memory_start),
+      d_(problem.model.dimension()),
+      n_steps_(problem.steps),
+      h_(problem.step_size()),
+      damped_(!problem.model.is_undamped()),
+      viscous_local_(memory_start == MemoryStart::kPaperStart && damping_sum_.order == 1.0 &&
+                     options.history != HistoryKind::kDirect),
+      use_history_(damped_ && !viscous_local_),
+      has_forcing_(static_cast<bool>(problem.model.forcing)),
+      u_time_dependent_(problem.model.potential && problem.model.potential->is_time_dependent()),
+      diagnostics_(options.diagnostics),
+      mass_(problem.model.mass.symmetric_part()),
+      damping_(problem.model.damping.symmetric_part()),
+      force_matrix_(damping_.scaled(std::pow(h_, -damping_sum_.order))),
+      mass_solver_(mass_, force_matrix_, options.linear_solver),
+      newton_(mass_, h_, problem.model.potential.get(), options.newton, problem.t0,
+              options.linear_solver) {
+  const double order = damping_sum_.order;
+  const bool caputo = problem.model.convention == Convention::kCaputo;
+  if (memory_start == MemoryStart::kPaperStart) {
+    shift_x0_ = caputo && order > 0.0 && order != 1.0;
+    shift_v0_ = caputo && order > 1.0;
+    // Weight of the impulse h F_0 in p⁺_0 = M v_0 − w h F_0 (start_step.md §2a): ½ (the
+    // trapezoidal split of a smooth force), or 1 for Riemann–Liouville with 0 < 2α < 1, where
+    // F_0 = R h^{−2α} x_0 stands for the singular force R x_0 t^{−2α}/Γ(1−2α) and only the full
+    // left-rectangle weight of the GL sums is consistent.
+    start_force_weight_ = !caputo && order > 0.0 && order < 1.0 ? 1.0 : 0.5;
+  } else {
+    // x = P + x̃, P(t) = x_0 + (t − t_0) v_0; D^{2α}P in closed form. D^0 is the identity: no split.
+    shift_x0_ = shift_v0_ = order > 0.0;
+    start_force_weight_ = 0.5;
+    // H(τ) = ∫_0^τ∫_0^σ D^{2α}P, the double antiderivative of P's damping force (per unit R):
+    //   v_0 term: D^{2α}τ = τ^{1−2α}/Γ(2−2α)  →  H = τ^{3−2α}/Γ(4−2α)  (0 < 2α < 2; RL and
+    //             Caputo alike for 2α ≤ 1; the Caputo derivative of τ vanishes for 2α > 1);
+    //   x_0 term: Riemann–Liouville only, 0 < 2α < 1: D^{2α}1 = τ^{−2α}/Γ(1−2α) → H =
+    //             τ^{2−2α}/Γ(3−2α) (2α > 1 with x_0 ≠ 0 is refused as ill-posed; integer orders
+    //             have none).
+    if (order > 0.0 && order < 2.0 && !(caputo && order > 1.0)) {
+      jv_ = 1.0 / boost::math::tgamma(4.0 - order);
+      ev_ = 3.0 - order;
+    }
+    if (!caputo && order > 0.0 && order < 1.0) {
+      jx_ = 1.0 / boost::math::tgamma(3.0 - order);
+      ex_ = 2.0 - order;
+    }
+    poly_scale_ = std::pow(h_, order - 2.0);
+  }
+  if (use_history_) {
+    history_ =
+        make_history(options.history, damping_sum_, d_, n_steps_ + 1, options.history_tolerance);
+    history_->set_threads(options.threads);
+  }
+  for (Eigen::VectorXd* vec :
+       {&x_cur_, &x_next_, &v_cur_, &v_next_, &x_first_, &p_, &p_plus_, &p_minus_, &force_,
+        &force_next_, &w_, &w_next_, &sum_, &x_tilde_, &f_mid_, &rhs_, &mid_, &grad_, &dx_}) {
+    vec->setZero(d_);
+  }
+
+  // The state at k = 0: x_0, v_0, p_0 = M v_0 and the damping force F_0.
+  x_cur_ = problem.x0;
+  v_cur_ = problem.v0;
+  mass_.multiply(problem.v0, p_);
+  if (damped_) {
+    if (viscous_local_) {
+      // Lemma 5.3's backward difference needs x_{−1}; the consistent force at t_0 is R v_0.
+      damping_.multiply(problem.v0, force_);
+      mass_solver_.inverse(force_, w_);
+    } else if (memory_start_ == MemoryStart::kPaperStart && damping_sum_.order == 1.0) {
+      // 2α = 1 with the direct history (a check of Lemma 5.3 against the full sum): the history
+      // holds x_0, the force at t_0 is still R v_0.
+      tilde(problem.x0, 0, x_tilde_);
+      history_->push(x_tilde_);
+      damping_.multiply(problem.v0, force_);
+      mass_solver_.inverse(force_, w_);
+    } else {
+      tilde(problem.x0, 0, x_tilde_);
+      history_->push(x_tilde_);
+      history_->sum(sum_);
+      // F_0 stands for the impulse over [t_0, t_½]: (2/h)·∫ of P's force there.
+      if (memory_start_ == MemoryStart::kTaylorSplit) add_polynomial_force(0, sum_);
+      force_matrix_.multiply(sum_, force_);
+      mass_solver_.inverse_damping(sum_, w_);
+    }
+  }
+  if (diagnostics_) {
+    fv_ = force_.dot(problem.v0);
+    fw_ = force_.dot(w_);
+    work_ = 0.0;
+  } else {
+    work_ = kNaN;
+  }
+}
+
+void CqMidpointStepper::tilde(const Eigen::Ref<const Eigen::VectorXd>& x, std::size_t i,
+                              Eigen::VectorXd& out) const {
+  out = x;
+  if (shift_x0_) out -= problem_.x0;
+  if (shift_v0_) out -= (static_cast<double>(i) * h_) * problem_.v0;
+}
+
+namespace {
+
+// (k+1)^p − 2k^p + (k−1)^p for k ≥ 1, without the cancellation of the direct formula for large k:
+// k^p · 2 Σ_{j≥1} binom(p, 2j) k^{−2j} (the series converges geometrically for k ≥ 2).
+double second_difference_of_power(std::size_t k, double p) {
+  if (k == 1) return std::pow(2.0, p) - 2.0;
+  const double u2 = 1.0 / (static_cast<double>(k) * static_cast<double>(k));
+  double binom = 1.0, power = 1.0, sum = 0.0;
+  for (int m = 1; m <= 120; ++m) {
+    binom *= (p - m + 1) / m;  // binom(p, m)
+    if (m % 2 == 1) continue;
+    power *= u2;
+    const double term = binom * power;
+    sum += term;
+    if (std::abs(term) <= 1e-18 * std::abs(sum)) break;
+  }
+  return std::pow(static_cast<double>(k), p) * 2.0 * sum;
+}
+
+}  // namespace
+
+void CqMidpointStepper::add_polynomial_force(std::size_t k, Eigen::VectorXd& s) const {
+  // P's force at node k in the x-equation M(x_{k+1} − 2x_k + x_{k−1})/h² + F_k + … = 0 is the
+  // second difference of H: (H(t_{k+1}) − 2H(t_k) + H(t_{k−1}))/h², which the scheme integrates
+  // exactly (P's part of the solution is reproduced to round-off, whatever the singularity of its
+  // force at t_0). At k = 0 the start p⁺_0 = M v_0 − (h/2)F_0 reproduces x(t_1) when F_0 =
+  // 2H(h)/h². In the units of the history sum (F = R h^{−2α} s): s += h^{2α−2} · (…) with H(τ) = a
+  // τ^e.
+  auto add = [&](double a, double e, const Eigen::VectorXd& vec) {
+    const double second = k == 0 ? 2.0 : second_difference_of_power(k, e);  // × h^e
+    s += (poly_scale_ * a * std::pow(h_, e) * second) * vec;
+  };
+  if (jx_ != 0.0) add(jx_, ex_, problem_.x0);
+  if (jv_ != 0.0) add(jv_, ev_, problem_.v0);
+}
+
+Status CqMidpointStepper::advance() {
+  const Eigen::VectorXd& xk = x_cur_;
+  const std::size_t k = k_;
+  const double tk = time(k), t_half = half_time(k), t_next = time(k + 1);
+  const Eigen::VectorXd* f_ptr = nullptr;
+  if (has_forcing_) {
+    problem_.model.forcing(t_half, f_mid_);
+    f_ptr = &f_mid_;
+  }
+
+  if (k == 0 && options_.start == StartValue::kExplicitEuler) {
+    // Negative control only: x_1 = x_0 + h v_0, momentum from its discrete Legendre transform.
+    dx_ = h_ * problem_.v0;
+    mid_ = xk + 0.5 * dx_;
+    newton_.effective_gradient(mid_, t_half, f_ptr, grad_);
+    mass_.multiply(dx_, p_minus_);
+    p_minus_ *= 1.0 / h_;
+    p_minus_ -= (0.5 * h_) * grad_;
+    set_iterations(0);
+  } else {
+    // p⁺_k = p_k − (h/2) F_k, then M Δ_k + (h²/2)∇U_f(x_k + Δ_k/2, t_{k+½}) = h p⁺_k for the
+    // increment Δ_k = x_{k+1} − x_k. Predictor: the previous increment (h v_0 at k = 0).
+    p_plus_ = p_ - ((k == 0 ? start_force_weight_ : 0.5) * h_) * force_;
+    rhs_ = h_ * p_plus_;
+    if (k == 0) dx_ = h_ * problem_.v0;
+    const NewtonReport report = newton_.solve(xk, t_half, rhs_, f_ptr, dx_);
+    set_iterations(report.iterations);
+    if (report.status == Status::kNonFinite) {
+      return fail(Status::kNonFinite, "non-finite Newton residual or iterate");
+    }
+    if (report.singular) {
+      return fail(Status::kNewtonFailure,
+                  "the Newton matrix M + (h^2/4) Hess U could not be factored (singular)");
+    }
+    if (report.status == Status::kNewtonFailure) {
+      return fail(Status::kNewtonFailure,
+                  "Newton did not converge within %d iterations (last correction %.3e > "
+                  "tolerance %.3e)",
+                  report.iterations, report.correction, report.tolerance);
+    }
+    // p⁻_{k+1} = 2MΔ_k/h − p⁺_k (the two one-sided momenta average to M Δ_k/h).
+    mass_.multiply(dx_, p_minus_);
+    p_minus_ = p_minus_ * (2.0 / h_) - p_plus_;  // one pass, the same roundings as *= then -=
+  }
+  x_next_ = xk + dx_;
+  if (!x_next_.allFinite()) return fail(Status::kNonFinite, "non-finite position");
+
+  // Damping force at the new point, grid momentum p_{k+1} = p⁻_{k+1} − (h/2)F_{k+1}, velocity.
+  if (viscous_local_ && damped_) {
+    // Lemma 5.3 without a history object: Σ c_m x_{k+1−m} = x_{k+1} − x_k. Written as
+    // (−x_k) + x_{k+1}, the same floating-point operations as the direct sum (bitwise equal).
+    sum_ = x_next_ - xk;
+  } else if (damped_) {
+    tilde(x_next_, k + 1, x_tilde_);
+    history_->push(x_tilde_);
+    history_->sum(sum_);
+    if (memory_start_ == MemoryStart::kTaylorSplit) add_polynomial_force(k + 1, sum_);
+  }
+  if (damped_) force_matrix_.multiply(sum_, force_next_);
+  p_ = p_minus_ - (0.5 * h_) * force_next_;
+  mass_solver_.inverse(p_, v_next_);
+
+  // Energy account (solution.hpp; start_step.md §4).
+  double fv_next = 0.0, fw_next = 0.0;
+  if (diagnostics_) {
+    if (damped_) mass_solver_.inverse_damping(sum_, w_next_);  // M⁻¹F_{k+1}
+    fv_next = force_next_.dot(v_next_);
+    fw_next = force_next_.dot(w_next_);
+    work_ += 0.5 * h_ * (fv_ + fv_next) + 0.125 * h_ * h_ * (fw_next - fw_);
+    // The extra start impulse (w − ½) h F_0 of the singular RL force, booked with v_0.
+    if (k == 0) work_ += (start_force_weight_ - 0.5) * h_ * fv_;
+    if (has_forcing_) work_ -= f_mid_.dot(dx_);
+    if (u_time_dependent_) {
+      mid_ = xk + 0.5 * dx_;
+      work_ -= potential_value(mid_, t_next) - potential_value(mid_, tk);
+    }
+  }
+  if (!v_next_.allFinite()) return fail(Status::kNonFinite, "non-finite velocity");
+
+  if (k == 0) x_first_ = x_next_;  // the mirror run starts from x_0, x_1
+  ++k_;
+  x_cur_.swap(x_next_);
+  v_cur_.swap(v_next_);
+  force_.swap(force_next_);
+  w_.swap(w_next_);
+  fv_ = fv_next;
+  fw_ = fw_next;
+  return Status::kSuccess;
+}
+
+// The y-equation, solved backwards from y_N = x_0, y_{N−1} = x_1 for y_{k−1}, k = N−1 … 1, in its
+// literal second-difference form (not the momentum form of the x-run), with its own
+// forward-running history: M(y_{k+1} − 2y_k + y_{k−1})/h² + R h^{−2α} Σ_{m=0}^{N−k} ω_m ỹ_{k+m}
+// + ½∇U_f(ȳ_k) + ½∇U_f(ȳ_{k−1}) = 0. U and f are evaluated at the mirrored times
+// (y_j ≈ x(a + b − t_j)); kTaylorSplit adds P's force of the mirrored cell.
+double CqMidpointStepper::mirror_error(const Solution& sol, std::size_t rows) const {
+  try {
+    const std::size_t n = n_steps_;
+    if (n < 2) return 0.0;
+    MidpointNewton solver(mass_, h_, problem_.model.potential.get(), options_.newton, problem_.t0,
+                          options_.linear_solver);
+    std::unique_ptr<History> hist;
+    if (damped_) {
+      hist = make_history(options_.history, damping_sum_, d_, n + 1, options_.history_tolerance);
+      hist->set_threads(options_.threads);
+    }
+    const Eigen::Index d = d_;
+    Eigen::VectorXd y_next = problem_.x0, y_k = x_first_, y_prev(d), shifted(d), s(d), fy(d), g(d),
+                    f_tau(d), f_tau2(d), c(d), ym(d), step(d);
+    // Δ = y_{k−1} − y_k; the equation is M(Δ_k − Δ_{k+1}) + h²F_k + (h²/2)(∇U_f(ȳ_k) +
+    // ∇U_f(ȳ_{k−1})) = 0 (increments keep round-off out of the differences, as in the x-run).
+    Eigen::VectorXd delta = y_k - y_next;
+    // ỹ_j = y_j − y_N − (t_N − t_j) v_0: the shift of the reversed clock.
+    auto push = [&](const Eigen::VectorXd& y, std::size_t j) {
+      shifted = y;
+      if (shift_x0_) shifted -= problem_.x0;
+      if (shift_v0_) shifted -= (static_cast<double>(n - j) * h_) * problem_.v0;
+      hist->push(shifted);
+    };
+    if (damped_) {
+      push(y_next, n);
+      push(y_k, n - 1);
+    }
+    std::size_t next_row = 0;
+    double err = 0.0;
+    for (std::size_t kk = n - 1; kk >= 1; --kk) {
+      fy.setZero();
+      if (damped_) {
+        hist->sum(s);
+        if (memory_start_ == MemoryStart::kTaylorSplit) {
+          add_polynomial_force(n - kk, s);  // node kk mirrors the x-index N − kk
+        }
+        force_matrix_.multiply(s, fy);
+      }
+      // ȳ_k = (y_{k+1} + y_k)/2 mirrors x̄ at t_{N−k−½}; ȳ_{k−1} mirrors x̄ at t_{N−k+½}.
+      const double tau_known = half_time(n - kk - 1), tau_new = half_time(n - kk);
+      const Eigen::VectorXd* f_known = nullptr;
+      const Eigen::VectorXd* f_new = nullptr;
+      if (has_forcing_) {
+        problem_.model.forcing(tau_known, f_tau);
+        problem_.model.forcing(tau_new, f_tau2);
+        f_known = &f_tau;
+        f_new = &f_tau2;
+      }
+      ym = 0.5 * (y_next + y_k);
+      solver.effective_gradient(ym, tau_known, f_known, g);
+      mass_.multiply(delta, c);
+      c -= (h_ * h_) * fy;
+      c -= (0.5 * h_ * h_) * g;
+      step = delta;  // predictor
+      const NewtonReport report = solver.solve(y_k, tau_new, c, f_new, step);
+      if (report.status != Status::kSuccess) return kNaN;
+      delta = step;
+      y_prev = y_k + delta;
+      const std::size_t mirrored = n - kk + 1;  // y_{kk−1} ≈ x_{mirrored}
+      while (next_row < rows && sol.step[next_row] < mirrored) ++next_row;
+      if (next_row < rows && sol.step[next_row] == mirrored) {
+        const Eigen::Map<const Eigen::VectorXd> x_row(
+            sol.x.row(static_cast<Eigen::Index>(next_row)).data(), d);
+        err = std::max(err, (y_prev - x_row).cwiseAbs().maxCoeff());
+      }
+      if (damped_) push(y_prev, kk - 1);
+      y_next.swap(y_k);
+      y_k.swap(y_prev);
+    }
+    return err;
+  } catch (...) {
+    return kNaN;  // a throwing callback makes the check unavailable, not the run invalid
+  }
+}
+
+}  // namespace fracvi::internal

@@ -1,0 +1,106 @@
+// The `DiscEqs` family (internal): the restricted discrete variational principle with the midpoint
+// discrete Lagrangian and discrete fractional derivatives Δ^α_± given by a convolution quadrature
+// with generating function δ. The restricted variation composes Δ^α_− and Δ^α_+ into the CQ of
+// order 2α (δ^α·δ^α = δ^{2α}), so for k = 1 … N−1 the x-equation is
+//
+//   M (x_{k+1} − 2x_k + x_{k−1})/h² + F_k + ½∇U_f(x̄_k, t_{k+½}) + ½∇U_f(x̄_{k−1}, t_{k−½}) = 0,
+//   F_k = R h^{−2α} Σ_{m=0}^{k} ω_m x̃_{k−m} (+ the exact force of the removed polynomial, below),
+//
+// and the mirror y-equation is the same with the sum running forward (docs/theory/start_step.md for
+// δ = 1 − ζ, the paper's scheme `fvi-gl`; docs/theory/fvi_bdf2.md for δ = BDF2, `fvi-bdf2`).
+// The damping involves known states only (explicit memory), hence the stability bound
+// λ_max(M⁻¹R) h^{2−2α} δ(−1)^{2α}/4 < 1 (docs/theory/stability.md).
+//
+// It is solved in the momentum form p⁺_k = p_k − (h/2) F_k,
+//   M (x_{k+1} − x_k)/h + (h/2) ∇U_f(x̄_k, t_{k+½}) = p⁺_k,   p⁻_{k+1} = 2MΔ_k/h − p⁺_k,
+//   p_{k+1} = p⁻_{k+1} − (h/2) F_{k+1},
+// by Newton's method with Jacobian M + (h²/4) ∇²U(x̄_k).
+//
+// The two members of the family differ only in how the memory meets the initial data:
+//  * kPaperStart (fvi-gl): the memory acts on x̃ = x − x_0 (Caputo, 2α ∉ {0, 1}) − t v_0 (2α > 1);
+//    for 2α = 1 Lemma 5.3's local difference with F_0 = R v_0; for Riemann–Liouville with
+//    0 < 2α < 1 the start impulse takes the full weight h F_0 (start_step.md §2a).
+//  * kTaylorSplit (fvi-bdf2): x = P + x̃ with P(t) = x_0 + (t − t_0) v_0. The memory acts on
+//    x̃ = O(t²) (smooth enough for the second-order CQ), and the damping force of P is added in
+//    closed form as the second difference (H(t_{k+1}) − 2H(t_k) + H(t_{k−1}))/h² of its double
+//    antiderivative H (2H(t_1)/h² at k = 0), which the scheme integrates exactly, so that a
+//    singular RL force x_0 t^{−2α}/Γ(1−2α) costs no order.
+#pragma once
+
+#include <Eigen/Dense>
+#include <array>
+#include <memory>
+
+#include "fracvi/fractional/convolution_quadrature.hpp"
+#include "fracvi/integrate/history.hpp"
+#include "fracvi/integrate/midpoint_newton.hpp"
+#include "fracvi/schemes/stepper.hpp"
+#include "mass_solver.hpp"
+
+namespace fracvi::internal {
+
+enum class MemoryStart { kPaperStart, kTaylorSplit };
+
+class CqMidpointStepper final : public Stepper {
+ public:
+  CqMidpointStepper(const InitialValueProblem& problem, const IntegratorOptions& options,
+                    CqScheme generating_function, MemoryStart memory_start);
+
+  [[nodiscard]] const Eigen::VectorXd& position() const override { return x_cur_; }
+  [[nodiscard]] const Eigen::VectorXd& velocity() const override { return v_cur_; }
+  [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
+  [[nodiscard]] double work() const override { return work_; }
+  [[nodiscard]] double mirror_error(const Solution& solution, std::size_t rows) const override;
+  [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
+  [[nodiscard]] std::size_t history_bytes() const override {
+    return history_ ? history_->memory_bytes() : 0;
+  }
+
+ private:
+  Status advance() override;
+  [[nodiscard]] double time(std::size_t i) const {
+    return problem_.t0 + static_cast<double>(i) * h_;
+  }
+  [[nodiscard]] double half_time(std::size_t i) const {
+    return problem_.t0 + (static_cast<double>(i) + 0.5) * h_;
+  }
+  [[nodiscard]] double potential_value(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const {
+    return problem_.model.potential ? problem_.model.potential->value(x, t) : 0.0;
+  }
+  // x̃_i = x_i − (shift of the initial data), for index i of the clock running from t_0.
+  void tilde(const Eigen::Ref<const Eigen::VectorXd>& x, std::size_t i, Eigen::VectorXd& out) const;
+  // kTaylorSplit: adds P's damping force at node k to the history sum s (units F = R h^{−2α} s).
+  void add_polynomial_force(std::size_t k, Eigen::VectorXd& s) const;
+  void damping_force(Eigen::VectorXd& f_out, Eigen::VectorXd& w_out);
+
+  const InitialValueProblem& problem_;
+  IntegratorOptions options_;
+  ConvolutionQuadrature damping_sum_;  // δ^{2α}
+  MemoryStart memory_start_;
+  Eigen::Index d_;
+  std::size_t n_steps_;
+  double h_;
+  bool damped_;
+  bool viscous_local_;  // kPaperStart, 2α = 1: Lemma 5.3 without a history
+  bool use_history_;
+  bool shift_x0_, shift_v0_;
+  double start_force_weight_;
+  // kTaylorSplit: H(τ) = jx τ^{ex} x_0 + jv τ^{ev} v_0 (τ = t − t_0); zero coefficients are absent.
+  double jx_ = 0.0, ex_ = 0.0, jv_ = 0.0, ev_ = 0.0, poly_scale_ = 0.0;
+  bool has_forcing_;
+  bool u_time_dependent_;
+  bool diagnostics_;
+
+  ModelMatrix mass_, damping_, force_matrix_;
+  MassSolver mass_solver_;
+  std::unique_ptr<History> history_;
+  MidpointNewton newton_;
+
+  std::size_t k_ = 0;
+  Eigen::VectorXd x_cur_, x_next_, v_cur_, v_next_, x_first_;
+  Eigen::VectorXd p_, p_plus_, p_minus_, force_, force_next_, w_, w_next_, sum_, x_tilde_, f_mid_,
+      rhs_, mid_, grad_, dx_;
+  double fv_ = 0.0, fw_ = 0.0, work_ = 0.0;
+};
+
+}  // namespace fracvi::internal

@@ -1,0 +1,89 @@
+#include "fracvi/schemes/registry.hpp"
+
+#include <array>
+#include <cmath>
+#include <string>
+
+#include "fracvi/core/error.hpp"
+#include "scheme_rows.hpp"
+
+namespace fracvi {
+
+namespace {
+
+// One line per scheme.
+constexpr std::array<const SchemeInfo*, 2> kSchemes{
+    &internal::kFviGl,
+    &internal::kFviBdf2,
+};
+
+}  // namespace
+
+std::span<const SchemeInfo* const> registered_schemes() {
+  return kSchemes;
+}
+
+const SchemeInfo* find_scheme(std::string_view name) {
+  for (const SchemeInfo* info : kSchemes)
+    if (info->name == name) return info;
+  return nullptr;
+}
+
+std::string scheme_names() {
+  std::string names;
+  for (const SchemeInfo* info : kSchemes) {
+    if (!names.empty()) names += ", ";
+    names += info->name;
+  }
+  return names;
+}
+
+std::vector<SchemeRow> scheme_table() {
+  std::vector<SchemeRow> rows;
+  for (const SchemeInfo* info : kSchemes) {
+    rows.push_back({std::string(info->name), std::string(info->order_rule),
+                    std::string(info->applies_to), std::string(info->stability_rule),
+                    std::string(info->summary), std::string(info->reference), info->stages,
+                    info->variational, info->has_mirror, info->exact_balance});
+  }
+  return rows;
+}
+
+Method::Method() : info_(&internal::kFviGl) {}
+
+Method fvi_gl() {
+  return Method(internal::kFviGl);
+}
+Method fvi_bdf2() {
+  return Method(internal::kFviBdf2);
+}
+
+std::optional<Method> parse_method(std::string_view name) {
+  if (const SchemeInfo* info = find_scheme(name)) return Method(*info);
+  return std::nullopt;
+}
+
+void check_applicable(const InitialValueProblem& problem, const Method& method) {
+  const SchemeInfo& info = method.info();
+  if (const std::string rule = info.applicability(problem); !rule.empty()) {
+    throw ValidationError("method.scheme = \"" + std::string(info.name) +
+                          "\" does not apply to this problem: " + rule);
+  }
+  const StabilityBound bound = info.stability(problem);
+  if (bound.stable) return;
+  std::string advice;
+  if (bound.largest_step > 0.0 && std::isfinite(bound.largest_step)) {
+    const double span = problem.t_end - problem.t0;
+    const double steps = std::floor(span / bound.largest_step) + 1.0;
+    advice = "; the largest stable step is h < " + format_number(bound.largest_step) +
+             ", i.e. time.steps >= " + format_number(steps);
+  } else {
+    advice = "; no step size is stable for this damping (reduce R or use another scheme)";
+  }
+  throw ValidationError("time.steps = " + std::to_string(problem.steps) +
+                        " (h = " + format_number(problem.step_size()) +
+                        ") is beyond the stability bound of " + std::string(info.name) +
+                        " (explicit damping memory): " + bound.rule + advice);
+}
+
+}  // namespace fracvi

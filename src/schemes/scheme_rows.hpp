@@ -1,0 +1,11 @@
+// The registry rows, one per scheme file (internal; listed in registry.cpp).
+#pragma once
+
+#include "fracvi/schemes/registry.hpp"
+
+namespace fracvi::internal {
+
+extern const SchemeInfo kFviGl;    // fvi_gl.cpp
+extern const SchemeInfo kFviBdf2;  // fvi_bdf2.cpp
+
+}  // namespace fracvi::internal
