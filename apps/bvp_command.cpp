@@ -8,8 +8,8 @@
 
 #include "cli.hpp"
 #include "fracvi/expression/expression.hpp"
+#include "fracvi/io/lagrangian_problem.hpp"
 #include "fracvi/io/problem_file.hpp"
-#include "fracvi/lagrangian/problem.hpp"
 
 namespace fracvi::cli {
 

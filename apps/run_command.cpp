@@ -11,10 +11,10 @@
 #include "fracvi/analysis/convergence.hpp"
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/io/lagrangian_problem.hpp"
 #include "fracvi/io/output.hpp"
 #include "fracvi/io/problem_file.hpp"
 #include "fracvi/io/run.hpp"
-#include "fracvi/lagrangian/problem.hpp"
 #include "plot.hpp"
 #include "progress.hpp"
 

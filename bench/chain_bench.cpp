@@ -25,8 +25,8 @@
 #include <string>
 
 #include "fracvi/integrate/integrator.hpp"
-#include "fracvi/integrate/midpoint_newton.hpp"
 #include "fracvi/model/chain_potential.hpp"
+#include "fracvi/solve/midpoint_newton.hpp"
 
 namespace {
 

@@ -20,8 +20,8 @@
 
 #include "fracvi/fractional/exponential_fit.hpp"
 #include "fracvi/fractional/weights.hpp"
-#include "fracvi/integrate/fast_history.hpp"
-#include "fracvi/integrate/history.hpp"
+#include "fracvi/memory/fast_history.hpp"
+#include "fracvi/memory/history.hpp"
 
 namespace {
 

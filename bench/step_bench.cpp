@@ -17,8 +17,8 @@
 #include <memory>
 
 #include "fracvi/integrate/integrator.hpp"
-#include "fracvi/integrate/midpoint_newton.hpp"
 #include "fracvi/model/potential.hpp"
+#include "fracvi/solve/midpoint_newton.hpp"
 
 namespace {
 

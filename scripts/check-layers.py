@@ -30,43 +30,22 @@ LAYERS = [
     ("expression", ["include/fracvi/expression/", "src/expression/"]),
     # Discrete fractional operators on sequences.
     ("discrete", ["include/fracvi/discrete/", "src/discrete/"]),
+    # The memory of the damping term: histories (direct, local, fast) over a convolution quadrature.
+    ("memory", ["include/fracvi/memory/", "src/memory/"]),
     # Mechanical model (M, R, U, f), potentials, ModelMatrix, InitialValueProblem.
     ("model", ["include/fracvi/model/", "src/model/"]),
-    # The memory and solve layers still in integrate/ (damping history, Newton, factorisations)
-    # and the result record Solution (core only; the schemes' steppers fill it).
-    (
-        "integrate-low",
-        [
-            "include/fracvi/integrate/history.hpp",
-            "include/fracvi/integrate/fast_history.hpp",
-            "include/fracvi/integrate/symmetric_factor.hpp",
-            "include/fracvi/integrate/midpoint_newton.hpp",
-            "include/fracvi/integrate/solution.hpp",
-            "src/integrate/history.cpp",
-            "src/integrate/fast_history.cpp",
-            "src/integrate/symmetric_factor.cpp",
-            "src/integrate/midpoint_newton.cpp",
-        ],
-    ),
+    # Newton's method for the implicit midpoint step and the symmetric factorisations it uses.
+    ("solve", ["include/fracvi/solve/", "src/solve/"]),
     # Time-stepping schemes: options, steppers, the scheme registry, stability bounds.
     ("schemes", ["include/fracvi/schemes/", "src/schemes/"]),
-    # The integrator driver (integrate(), Integrator): the rest of integrate/.
+    # The integrator driver (integrate(), Integrator) and its result record Solution.
     ("integrate", ["include/fracvi/integrate/", "src/integrate/"]),
     # General Lagrangians, action sums, continuous residuals, boundary value problems.
     ("lagrangian", ["include/fracvi/lagrangian/", "src/lagrangian/"]),
     # Error measures and convergence studies over Solutions.
     ("analysis", ["include/fracvi/analysis/", "src/analysis/"]),
-    # Problem files, run preparation, output files; lagrangian/problem.* is the problem-file
-    # front end of `fracvi bvp/residual/run` (ProblemSpec in, files out) kept at its public path.
-    (
-        "io",
-        [
-            "include/fracvi/io/",
-            "src/io/",
-            "include/fracvi/lagrangian/problem.hpp",
-            "src/lagrangian/problem.cpp",
-        ],
-    ),
+    # Problem files, run preparation, output files, the general-Lagrangian problem front end.
+    ("io", ["include/fracvi/io/", "src/io/"]),
 ]
 
 SOURCE_SUFFIXES = (".hpp", ".h", ".hh", ".ipp", ".inl", ".cpp", ".cc", ".cxx")

@@ -38,10 +38,10 @@
 #include "fracvi/fractional/riemann_liouville.hpp"
 #include "fracvi/fractional/weights.hpp"
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/io/lagrangian_problem.hpp"
 #include "fracvi/io/output.hpp"
 #include "fracvi/io/problem_file.hpp"
 #include "fracvi/io/run.hpp"
-#include "fracvi/lagrangian/problem.hpp"
 #include "fracvi/schemes/registry.hpp"
 
 namespace py = pybind11;

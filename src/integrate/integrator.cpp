@@ -273,7 +273,8 @@ const Solution& Integrator::solution() const {
 
 double Integrator::mirror_error() const {
   if (impl_->status != Status::kSuccess) return kNaN;
-  return impl_->stepper->mirror_error(impl_->sol, impl_->saved);
+  return impl_->stepper->mirror_error(
+      impl_->sol.x, std::span<const std::size_t>(impl_->sol.step.data(), impl_->saved));
 }
 
 Solution Integrator::take_solution() {

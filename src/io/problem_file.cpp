@@ -14,10 +14,10 @@
 #include <sstream>
 
 #include "fracvi/expression/expression.hpp"
-#include "fracvi/integrate/symmetric_factor.hpp"
 #include "fracvi/lagrangian/lagrangian.hpp"
 #include "fracvi/model/expression_potential.hpp"
 #include "fracvi/schemes/registry.hpp"
+#include "fracvi/solve/symmetric_factor.hpp"
 
 namespace fracvi {
 

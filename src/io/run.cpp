@@ -6,8 +6,8 @@
 #include <utility>
 
 #include "fracvi/expression/expression.hpp"
+#include "fracvi/io/lagrangian_problem.hpp"
 #include "fracvi/io/output.hpp"
-#include "fracvi/lagrangian/problem.hpp"
 
 namespace fracvi {
 

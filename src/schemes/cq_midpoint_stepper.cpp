@@ -4,8 +4,6 @@
 #include <cmath>
 #include <limits>
 
-#include "fracvi/integrate/solution.hpp"
-
 namespace fracvi::internal {
 
 namespace {
@@ -249,7 +247,9 @@ Status CqMidpointStepper::advance() {
 // forward-running history: M(y_{k+1} − 2y_k + y_{k−1})/h² + R h^{−2α} Σ_{m=0}^{N−k} ω_m ỹ_{k+m}
 // + ½∇U_f(ȳ_k) + ½∇U_f(ȳ_{k−1}) = 0. U and f are evaluated at the mirrored times
 // (y_j ≈ x(a + b − t_j)); kTaylorSplit adds P's force of the mirrored cell.
-double CqMidpointStepper::mirror_error(const Solution& sol, std::size_t rows) const {
+double CqMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
+                                       std::span<const std::size_t> steps) const {
+  const std::size_t rows = steps.size();
   try {
     const std::size_t n = n_steps_;
     if (n < 2) return 0.0;
@@ -309,10 +309,10 @@ double CqMidpointStepper::mirror_error(const Solution& sol, std::size_t rows) co
       delta = step;
       y_prev = y_k + delta;
       const std::size_t mirrored = n - kk + 1;  // y_{kk−1} ≈ x_{mirrored}
-      while (next_row < rows && sol.step[next_row] < mirrored) ++next_row;
-      if (next_row < rows && sol.step[next_row] == mirrored) {
+      while (next_row < rows && steps[next_row] < mirrored) ++next_row;
+      if (next_row < rows && steps[next_row] == mirrored) {
         const Eigen::Map<const Eigen::VectorXd> x_row(
-            sol.x.row(static_cast<Eigen::Index>(next_row)).data(), d);
+            x_rows.row(static_cast<Eigen::Index>(next_row)).data(), d);
         err = std::max(err, (y_prev - x_row).cwiseAbs().maxCoeff());
       }
       if (damped_) push(y_prev, kk - 1);

@@ -32,9 +32,9 @@
 #include <memory>
 
 #include "fracvi/fractional/convolution_quadrature.hpp"
-#include "fracvi/integrate/history.hpp"
-#include "fracvi/integrate/midpoint_newton.hpp"
+#include "fracvi/memory/history.hpp"
 #include "fracvi/schemes/stepper.hpp"
+#include "fracvi/solve/midpoint_newton.hpp"
 #include "mass_solver.hpp"
 
 namespace fracvi::internal {
@@ -50,7 +50,8 @@ class CqMidpointStepper final : public Stepper {
   [[nodiscard]] const Eigen::VectorXd& velocity() const override { return v_cur_; }
   [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
   [[nodiscard]] double work() const override { return work_; }
-  [[nodiscard]] double mirror_error(const Solution& solution, std::size_t rows) const override;
+  [[nodiscard]] double mirror_error(const RowMatrixXd& x,
+                                    std::span<const std::size_t> steps) const override;
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
   [[nodiscard]] std::size_t history_bytes() const override {
     return history_ ? history_->memory_bytes() : 0;

@@ -11,9 +11,9 @@
 #include <string>
 
 #include "fracvi/core/error.hpp"
-#include "fracvi/integrate/midpoint_newton.hpp"
-#include "fracvi/integrate/symmetric_factor.hpp"
 #include "fracvi/model/model_matrix.hpp"
+#include "fracvi/solve/midpoint_newton.hpp"
+#include "fracvi/solve/symmetric_factor.hpp"
 
 namespace fracvi::internal {
 

@@ -30,7 +30,7 @@ Status Stepper::fail(Status status, const char* format, ...) noexcept {
   return status;
 }
 
-double Stepper::mirror_error(const Solution&, std::size_t) const {
+double Stepper::mirror_error(const RowMatrixXd&, std::span<const std::size_t>) const {
   return std::numeric_limits<double>::quiet_NaN();
 }
 

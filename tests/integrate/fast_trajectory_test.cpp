@@ -5,8 +5,8 @@
 
 #include <cstdio>
 
-#include "fracvi/integrate/fast_history.hpp"
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/memory/fast_history.hpp"
 #include "fracvi/model/autodiff_potential.hpp"
 
 namespace fracvi {

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "fracvi/fractional/weights.hpp"
-#include "fracvi/integrate/history.hpp"
+#include "fracvi/memory/history.hpp"
 
 namespace fracvi {
 namespace {

@@ -1,6 +1,6 @@
 // The banded (LAPACK) and sparse (Eigen LDLᵀ) factorisations of a step's Newton matrix, against a
 // dense LU of the same matrix; the automatic choice; the LU fallback for indefinite matrices.
-#include "fracvi/integrate/symmetric_factor.hpp"
+#include "fracvi/solve/symmetric_factor.hpp"
 
 #include <gtest/gtest.h>
 

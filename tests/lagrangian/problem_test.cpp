@@ -1,6 +1,6 @@
 // Problem files with `[model] lagrangian` and `[boundary]`: parsing, strict validation, round trip,
 // and the mechanical-form detection behind `fracvi run`.
-#include "fracvi/lagrangian/problem.hpp"
+#include "fracvi/io/lagrangian_problem.hpp"
 
 #include <gtest/gtest.h>
 

@@ -21,7 +21,7 @@ struct PreparedRun {
 };
 
 /// Builds the initial value problem of `spec` — the mechanical model, or a general Lagrangian of
-/// mechanical form (fracvi/lagrangian/problem.hpp) — and validates it with its options. Every
+/// mechanical form (fracvi/io/lagrangian_problem.hpp) — and validates it with its options. Every
 /// failure is a ProblemFileError with one line "<source>: <what>": a boundary-value-only file (use
 /// fracvi bvp), a malformed formula (with its column), a Lagrangian that cannot be stepped
 /// forward, a scheme that does not apply or a step beyond its stability bound, or a model/option

@@ -4,7 +4,7 @@
 // Small systems give M and R as dense matrices; large ones (chains, lattices with d = 10^5) cannot
 // (a dense 10^5 × 10^5 matrix is 80 GB) and give them sparse, usually diagonal. The integrator
 // reads the storage to decide how to factor its Newton matrix M + (h²/4)∇²U (dense LU, banded
-// Cholesky, or sparse LDLᵀ; integrate/symmetric_factor.hpp): a sparse M together with a potential
+// Cholesky, or sparse LDLᵀ; solve/symmetric_factor.hpp): a sparse M together with a potential
 // that declares a sparse Hessian keeps every step O(d).
 //
 // Both forms convert implicitly, so existing code that assigns an Eigen matrix keeps working:

@@ -16,7 +16,7 @@
 // Sparse Hessians (chains, lattices): a potential may also declare the structure of ∇²U once
 // (hessian_pattern(), upper triangle) and fill only those entries (hessian_values()). With a
 // sparse mass matrix the integrator then factors its Newton matrix banded or sparse and a step
-// costs O(d) instead of O(d³) (integrate/symmetric_factor.hpp). The dense hessian() stays
+// costs O(d) instead of O(d³) (solve/symmetric_factor.hpp). The dense hessian() stays
 // required: small problems, tests and the dense path use it.
 #pragma once
 

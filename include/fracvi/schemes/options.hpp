@@ -6,8 +6,8 @@
 #include <cstddef>
 
 #include "fracvi/core/newton_options.hpp"
-#include "fracvi/integrate/history.hpp"
-#include "fracvi/integrate/symmetric_factor.hpp"
+#include "fracvi/memory/history.hpp"
+#include "fracvi/solve/symmetric_factor.hpp"
 
 namespace fracvi {
 

@@ -20,15 +20,15 @@
 #include <array>
 #include <cstddef>
 #include <limits>
+#include <span>
 #include <string_view>
 
+#include "fracvi/core/matrix.hpp"
 #include "fracvi/core/status.hpp"
 #include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/schemes/options.hpp"
 
 namespace fracvi {
-
-struct Solution;
 
 class Stepper {
  public:
@@ -49,8 +49,10 @@ class Stepper {
   [[nodiscard]] virtual double work() const = 0;
 
   /// The backward run of the scheme's mirror equation on a finished run: max_k ‖y_k − x_{N−k}‖_∞
-  /// over the stored rows of `solution`. NaN when the scheme has none or the backward run fails.
-  [[nodiscard]] virtual double mirror_error(const Solution& solution, std::size_t rows) const;
+  /// over the stored rows: row i of `x` is x at step `steps[i]` (steps ascending; rows past
+  /// steps.size() are ignored). NaN when the scheme has none or the backward run fails.
+  [[nodiscard]] virtual double mirror_error(const RowMatrixXd& x,
+                                            std::span<const std::size_t> steps) const;
 
   /// The factorisation of the implicit step: kDense, kBanded or kSparse.
   [[nodiscard]] virtual LinearSolver linear_solver() const = 0;

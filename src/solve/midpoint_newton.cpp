@@ -1,4 +1,4 @@
-#include "fracvi/integrate/midpoint_newton.hpp"
+#include "fracvi/solve/midpoint_newton.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -24,7 +24,7 @@
 #include <memory>
 
 #include "fracvi/fractional/exponential_fit.hpp"
-#include "fracvi/integrate/history.hpp"
+#include "fracvi/memory/history.hpp"
 
 namespace fracvi {
 

@@ -1,4 +1,4 @@
-#include "fracvi/integrate/symmetric_factor.hpp"
+#include "fracvi/solve/symmetric_factor.hpp"
 
 #include <lapacke.h>
 

@@ -30,9 +30,9 @@
 #include "fracvi/core/error.hpp"
 #include "fracvi/core/newton_options.hpp"
 #include "fracvi/core/status.hpp"
-#include "fracvi/integrate/symmetric_factor.hpp"
 #include "fracvi/model/model_matrix.hpp"
 #include "fracvi/model/potential.hpp"
+#include "fracvi/solve/symmetric_factor.hpp"
 
 namespace fracvi::internal {
 

@@ -1,4 +1,4 @@
-#include "fracvi/integrate/fast_history.hpp"
+#include "fracvi/memory/fast_history.hpp"
 
 #include <algorithm>
 #include <bit>

@@ -1,6 +1,6 @@
-#include "fracvi/integrate/history.hpp"
+#include "fracvi/memory/history.hpp"
 
-#include "fracvi/integrate/fast_history.hpp"
+#include "fracvi/memory/fast_history.hpp"
 
 #include <cassert>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "fracvi/lagrangian/problem.hpp"
+#include "fracvi/io/lagrangian_problem.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <charconv>
