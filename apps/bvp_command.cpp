@@ -1,5 +1,7 @@
 // `fracvi bvp`: the variational boundary value problem of the restricted discrete principle
-// (`DiscFracEL` for all interior x_k, y_k at once, Newton with the exact structured Jacobian).
+// (`DiscFracEL` for all interior x_k, y_k at once, Newton with the exact structured Jacobian), with
+// the Δ^α_± of `[method] scheme` (make_boundary_value_problem; a scheme without a boundary value
+// form is bad input, exit status 2).
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -29,7 +31,9 @@ Command add_bvp_command(CLI::App& parent) {
       "Solve the variational boundary value problem x(a) = start, x(b) = end, y(a) = end, "
       "y(b) = start of the restricted discrete fractional Euler-Lagrange equations (DiscFracEL) "
       "for the problem's Lagrangian ([model] lagrangian, or the mechanical fields) by Newton's "
-      "method, and write trajectory.csv (t, x, y, residuals), summary.json and problem.toml. "
+      "method, with the fractional differences of [method] scheme (fvi-gl: Grunwald-Letnikov, "
+      "fvi-bdf2: BDF2 convolution quadrature), and write trajectory.csv (t, x, y, residuals), "
+      "summary.json and problem.toml. "
       "Exit status: 0 converged, 1 numerical failure (best iterate written), 2 bad input.");
   app->add_option("problem", opt->file, "problem file (TOML) with a [boundary] section")
       ->required();
@@ -90,9 +94,9 @@ Command add_bvp_command(CLI::App& parent) {
     write_bvp_output(dir, spec, solution);
     if (!opt->quiet) {
       const Eigen::Index n = solution.x.rows() - 1;
-      std::printf("fracvi bvp: %s  (d = %lld, alpha = %g, N = %lld, %s action sum)\n",
+      std::printf("fracvi bvp: %s  (d = %lld, alpha = %g, N = %lld, %s, %s action sum)\n",
                   spec.name.c_str(), static_cast<long long>(spec.dim), spec.alpha,
-                  static_cast<long long>(spec.steps), solution.sum.c_str());
+                  static_cast<long long>(spec.steps), spec.scheme.c_str(), solution.sum.c_str());
       std::printf("  status            %s%s%s\n",
                   solution.ok() ? "success" : to_string(solution.status).data(),
                   solution.message.empty() ? "" : ": ", solution.message.c_str());

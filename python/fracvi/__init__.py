@@ -39,7 +39,7 @@ from ._fracvi import ProblemError
 
 __all__ = [
     "Problem", "ProblemError", "Solution", "IntegrationError", "integrate", "write", "plot",
-    "methods",
+    "methods", "problem_schema",
     "gl_weights", "cq_weights", "midpoint", "delta_minus", "delta_plus", "frac_delta_minus",
     "frac_delta_plus", "convolve_past", "convolve_future", "rl_derivative",
     "rl_derivative_power",
@@ -332,16 +332,16 @@ class Solution:
                 f"mirror_error={self.mirror_error:.3g})")
 
 
-def integrate(problem, *, scheme=None, newton_tolerance=None, newton_max_iterations=None,
-              linear_solver=None, threads=None, newton_absolute_tolerance=0.0, mirror=True,
-              diagnostics=True, history=None, start="legendre", raise_on_failure=False):
+def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostics=True,
+              history=None, start="legendre", raise_on_failure=False, **fields):
     """Integrates `problem` (a Problem, a dict, or a TOML path/text) to its final time.
 
-    scheme, newton_tolerance (relative), newton_max_iterations, linear_solver ("auto", "dense",
-    "banded", "sparse") and threads (0: all cores) override the problem's [method] section (None:
-    keep it) and are validated, and recorded in summary(), like the problem's own values. The
-    problem's output.every is the storage stride (only every n-th state and the last are kept).
-    The rest are run options: newton_absolute_tolerance, mirror (run the backward mirror
+    Every key of the problem's [method] and [output] sections (problem_schema(): scheme,
+    newton_tolerance (relative), newton_max_iterations, history_tolerance, linear_solver ("auto",
+    "dense", "banded", "sparse"), threads (0: all cores), every (store every n-th state)) may be
+    given as a keyword: it overrides the problem's value, is validated by the same reader as a
+    problem file, and is recorded in summary(). An unknown keyword is a TypeError naming the valid
+    ones. The rest are run options: newton_absolute_tolerance, mirror (run the backward mirror
     equation and report mirror_error; doubles the cost), diagnostics (energy, dissipated, balance
     columns), history (the memory sum's implementation: None keeps the problem's [method]
     history, else "auto", "direct" or "fast"), start ("legendre": the discrete Legendre
@@ -352,13 +352,19 @@ def integrate(problem, *, scheme=None, newton_tolerance=None, newton_max_iterati
     IntegrationError instead (with .solution). Bad input raises ProblemError / ValueError.
     """
     problem = _as_problem(problem)
-    method = {k: v for k, v in (("scheme", scheme), ("newton_tolerance", newton_tolerance),
-                                ("newton_max_iterations", newton_max_iterations),
-                                ("linear_solver", linear_solver), ("threads", threads))
-              if v is not None}
-    if method:
+    sections = {}
+    for key, value in fields.items():
+        section = _FIELD_SECTIONS.get(key)
+        if section is None:
+            valid = ", ".join(sorted(_FIELD_SECTIONS)) + ", " + ", ".join(_RUN_OPTIONS)
+            raise TypeError(f"integrate() got an unexpected keyword argument '{key}' "
+                            f"(valid: {valid})")
+        if value is not None:
+            sections.setdefault(section, {})[key] = value
+    if sections:
         document = problem.to_dict()
-        document.setdefault("method", {}).update(method)
+        for section, values in sections.items():
+            document.setdefault(section, {}).update(values)
         problem = Problem.from_dict(document, source=problem.source)
     run = _fracvi.integrate(problem._spec, bool(mirror), bool(diagnostics),
                             float(newton_absolute_tolerance), history or "", start)
@@ -424,7 +430,19 @@ def plot(solution, directory=None, *, show=None):
 
 
 # ---------------------------------------------------------------------------------------------
-# The method registry
+# The problem-file schema and the method registry
+
+def problem_schema():
+    """Every field of a problem file (the one schema of the reader, the docs and integrate()'s
+    keywords): a list of dicts with section ("" for the top level), key, type, default, summary."""
+    return _fracvi.problem_schema()
+
+
+# integrate()'s keywords from [method] and [output] (the "history" key is a run option there).
+_FIELD_SECTIONS = {row["key"]: row["section"] for row in _fracvi.problem_schema()
+                   if row["section"] in ("method", "output") and row["key"] != "history"}
+_RUN_OPTIONS = ("newton_absolute_tolerance", "mirror", "diagnostics", "history", "start",
+                "raise_on_failure")
 
 def methods():
     """The time-stepping schemes, one dict per scheme (the registry `fracvi methods` prints):

@@ -41,6 +41,7 @@
 #include "fracvi/io/lagrangian_problem.hpp"
 #include "fracvi/io/output.hpp"
 #include "fracvi/io/problem_file.hpp"
+#include "fracvi/io/problem_schema.hpp"
 #include "fracvi/io/run.hpp"
 #include "fracvi/schemes/registry.hpp"
 
@@ -528,6 +529,21 @@ void bind(py::module_& m) {
         return adopt_vector(cq_weights(*s, order, static_cast<std::size_t>(n)));
       },
       py::arg("order"), py::arg("n"), py::arg("scheme"));
+
+  // --- the problem-file schema (io/problem_schema.hpp) ------------------------------------------
+  m.def("problem_schema", []() {
+    py::list out;
+    for (const ProblemField& f : problem_schema()) {
+      py::dict row;
+      row["section"] = f.section;
+      row["key"] = f.key;
+      row["type"] = f.type;
+      row["default"] = f.default_text;
+      row["summary"] = f.summary;
+      out.append(row);
+    }
+    return out;
+  });
 
   // --- the method registry ---------------------------------------------------------------------
   m.def("methods", []() {

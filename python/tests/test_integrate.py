@@ -206,3 +206,32 @@ def test_solution_fields():
     assert s["status"] == "success" and s["steps"] == 500 and s["steps_requested"] == 500
     assert json.loads(json.dumps(s)) == s
     assert "success" in repr(sol)
+
+
+def test_schemes_and_schema_keywords(cli, write_file, tmp_path):
+    """The registry and the problem schema reach Python: fracvi.methods() is `fracvi methods
+    --json`; every [method]/[output] key is a keyword of integrate(), validated like the file."""
+    names = [m["name"] for m in fracvi.methods()]
+    r = cli("methods", "--json")
+    assert names == [m["name"] for m in json.loads(r.stdout)]
+    assert {"fvi-gl", "fvi-bdf2"} <= set(names)
+    keys = {(f["section"], f["key"]) for f in fracvi.problem_schema()}
+    assert {("method", "scheme"), ("method", "history_tolerance"), ("output", "every")} <= keys
+
+    path = write_file(PROBLEM)
+    sol = fracvi.integrate(path, scheme="fvi-bdf2", every=50, history_tolerance=1e-12)
+    assert sol.ok and sol.method == "fvi-bdf2" and sol.declared_order == 2
+    summary = sol.summary()
+    assert summary["problem"]["method"]["scheme"] == "fvi-bdf2"
+    assert summary["problem"]["output"]["every"] == 50
+    # the same run from the CLI, bit for bit
+    out = str(tmp_path / "bdf2")
+    r = cli("run", path, "--set", "method.scheme=fvi-bdf2", "--set", "output.every=50",
+            "--set", "method.history_tolerance=1e-12", "--out", out, "--no-plot", "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert read_summary(out)["final_position"] == summary["final_position"]
+
+    with pytest.raises(TypeError, match="unexpected keyword argument 'schem'.*scheme"):
+        fracvi.integrate(path, schem="fvi-bdf2")
+    with pytest.raises(fracvi.ProblemError, match="fvi-gl, fvi-bdf2"):
+        fracvi.integrate(path, scheme="fvi-bdf3")

@@ -8,6 +8,7 @@
 
 #include "fracvi/io/output.hpp"
 #include "fracvi/model/expression_potential.hpp"
+#include "fracvi/schemes/registry.hpp"
 
 namespace fracvi {
 
@@ -118,6 +119,15 @@ void check_velocity_hessian(const Lagrangian& lagrangian, double t,
   }
 }
 
+CqScheme boundary_value_quadrature(const ProblemSpec& spec) {
+  const SchemeInfo* info = find_scheme(spec.scheme);
+  if (info == nullptr) {
+    throw ValidationError("method.scheme = \"" + spec.scheme +
+                          "\" is not a known scheme (available: " + scheme_names() + ")");
+  }
+  return boundary_value_quadrature(*info);
+}
+
 BoundaryValueProblem make_boundary_value_problem(const ProblemSpec& spec) {
   if (spec.boundary_start.size() == 0) {
     throw ValidationError(
@@ -127,6 +137,7 @@ BoundaryValueProblem make_boundary_value_problem(const ProblemSpec& spec) {
   BoundaryValueProblem p;
   p.lagrangian = make_lagrangian(spec);
   p.grid = DiscreteGrid{spec.start, spec.end, static_cast<Eigen::Index>(spec.steps), spec.alpha};
+  p.grid.quadrature = boundary_value_quadrature(spec);
   p.x_start = spec.boundary_start;
   p.x_end = spec.boundary_end;
   validate(p);
@@ -269,6 +280,7 @@ nlohmann::json make_bvp_summary(const ProblemSpec& spec, const BvpSolution& s) {
       {"status", s.ok() ? "success" : std::string(to_string(s.status))},
       {"message", s.message},
       {"steps", n},
+      {"scheme", spec.scheme},
       {"action_sum", s.sum},
       {"residual_norm", json_number(s.residual_norm)},
       {"residual_floor", json_number(s.residual_floor)},

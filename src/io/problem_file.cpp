@@ -1,4 +1,5 @@
 #include "fracvi/io/problem_file.hpp"
+#include "fracvi/io/problem_schema.hpp"
 
 #include "fracvi/schemes/options.hpp"
 #include "fracvi/schemes/registry.hpp"
@@ -23,23 +24,14 @@ namespace fracvi {
 
 namespace {
 
-// The schema: section → allowed keys. "" is the top level; "model.chain" is a table in [model].
+// The schema: section → allowed keys, from the one table of io/problem_schema.hpp. "" is the top
+// level; "model.chain" is a table in [model].
 const std::map<std::string, std::vector<std::string>>& schema() {
-  static const std::map<std::string, std::vector<std::string>> s{
-      {"", {"name", "model", "initial", "boundary", "time", "method", "output", "reference"}},
-      {"model",
-       {"dim", "mass", "damping", "alpha", "damping_order", "convention", "potential", "chain",
-        "force", "lagrangian"}},
-      {"model.chain", {"stiffness", "cubic", "quartic", "onsite", "boundary"}},
-      {"initial", {"position", "velocity"}},
-      {"boundary", {"start", "end"}},
-      {"time", {"start", "end", "steps", "step"}},
-      {"method",
-       {"scheme", "newton_tolerance", "newton_max_iterations", "history", "history_tolerance",
-        "linear_solver", "threads"}},
-      {"output", {"every"}},
-      {"reference", {"position"}},
-  };
+  static const std::map<std::string, std::vector<std::string>> s = [] {
+    std::map<std::string, std::vector<std::string>> m;
+    for (const ProblemField& f : problem_schema()) m[f.section].push_back(f.key);
+    return m;
+  }();
   return s;
 }
 

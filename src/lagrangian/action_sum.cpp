@@ -38,7 +38,7 @@ DiscreteElSystem::DiscreteElSystem(Eigen::Index d, const DiscreteGrid& grid, Act
   h_ = grid.step();
   inv_h_ = 1.0 / h_;
   inv_h_alpha_ = std::pow(h_, -grid.alpha);
-  weights_ = gl_weights(grid.alpha, static_cast<std::size_t>(n_ + 1));
+  weights_ = cq_weights(grid.quadrature, grid.alpha, static_cast<std::size_t>(n_ + 1));
   if (n_ + 1 > kFftThreshold) {
     fft_size_ = 1;
     while (fft_size_ < 2 * (n_ + 1)) fft_size_ *= 2;
@@ -52,7 +52,7 @@ DiscreteElSystem::DiscreteElSystem(Eigen::Index d, const DiscreteGrid& grid, Act
   }
 }
 
-void DiscreteElSystem::gl_sum(const double* s, Eigen::Index stride, double* out,
+void DiscreteElSystem::cq_sum(const double* s, Eigen::Index stride, double* out,
                               Eigen::Index out_stride, bool reverse, bool accumulate) const {
   const Eigen::Index n = n_;
   // Element k of the (possibly reversed) series.
@@ -105,11 +105,11 @@ void DiscreteElSystem::phase_points(const Sequence& x, const Sequence& y,
       zk.segment(2 * d, d) = (x.col(k) - x.col(k - 1)) * inv_h_;
     }
   }
-  // Δ^α_−x_k = h^{−α} Σ_{m=0}^{k} α_m x_{k−m},  Δ^α_+y_k = h^{−α} Σ_{m=0}^{N−k} α_m y_{k+m}.
+  // Δ^α_−x_k = h^{−α} Σ_{m=0}^{k} ω_m x_{k−m},  Δ^α_+y_k = h^{−α} Σ_{m=0}^{N−k} ω_m y_{k+m}.
   const Eigen::Index zs = z.rows();
   for (Eigen::Index i = 0; i < d; ++i) {
-    gl_sum(x.data() + i, d, z.data() + 4 * d + i, zs, false, false);
-    gl_sum(y.data() + i, d, z.data() + 5 * d + i, zs, true, false);
+    cq_sum(x.data() + i, d, z.data() + 4 * d + i, zs, false, false);
+    cq_sum(y.data() + i, d, z.data() + 5 * d + i, zs, true, false);
   }
 }
 
@@ -137,8 +137,8 @@ void DiscreteElSystem::assemble(const Eigen::MatrixXd& g, Sequence& x_eq, Sequen
   if (!extended) tail.col(n).setZero();
   Eigen::MatrixXd memory_x(d, n + 1), memory_y(d, n + 1);
   for (Eigen::Index i = 0; i < d; ++i) {
-    gl_sum(tail.data() + d + i, 2 * d, memory_x.data() + i, d, false, false);
-    gl_sum(tail.data() + i, 2 * d, memory_y.data() + i, d, true, false);
+    cq_sum(tail.data() + d + i, 2 * d, memory_x.data() + i, d, false, false);
+    cq_sum(tail.data() + i, 2 * d, memory_y.data() + i, d, true, false);
   }
   x_eq.middleCols(1, n - 1) += memory_x.middleCols(1, n - 1);
   y_eq.middleCols(1, n - 1) += memory_y.middleCols(1, n - 1);

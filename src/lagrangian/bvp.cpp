@@ -166,7 +166,7 @@ struct DiscreteElJacobian::Impl {
     return out;
   }
 
-  // The entries of A_k (the unknowns that z_k depends on), GL sums truncated after `width` lags.
+  // The entries of A_k (the unknowns that z_k depends on), CQ sums truncated after `width` lags.
   // C_k has the same entries with the fractional blocks routed to the other equation
   // (discrete_system.hpp).
   void input_entries(Eigen::Index k, Eigen::Index width, std::vector<MapEntry>& out) const {
@@ -196,7 +196,7 @@ struct DiscreteElJacobian::Impl {
       add(5, j, true, inv_h_alpha * w[static_cast<std::size_t>(j - k)]);
   }
 
-  // Σ_k C_kᵀ H_k A_k with truncated GL sums; sink(row, col, coefficient, d×d block).
+  // Σ_k C_kᵀ H_k A_k with truncated CQ sums; sink(row, col, coefficient, d×d block).
   template <class Sink>
   void assemble(Eigen::Index width, Sink&& sink) const {
     std::vector<MapEntry> in;

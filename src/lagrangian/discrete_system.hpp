@@ -3,7 +3,8 @@
 // Everything in the discrete equations is linear except ∇L at each point:
 //
 //     Z = A (x, y)          the phase points z_k (`AllSequencs`): banded S, Δ_± and the lower /
-//                           upper triangular Toeplitz GL sums Δ^α_∓,
+//                           upper triangular Toeplitz CQ sums Δ^α_∓ (weights
+//                           cq_weights(grid.quadrature, α): GL by default),
 //     G_k = ∇L(t_k+½, z_k)  one gradient per point (the only nonlinearity),
 //     F = Cᵀ G              the equations: F = (x-equation_k, y-equation_k)_{k=1..N−1}.
 //
@@ -47,9 +48,9 @@ class DiscreteElSystem {
   /// x_eq, y_eq are d × (N+1) with columns 0 and N zero. Linear in G.
   void assemble(const Eigen::MatrixXd& g, Sequence& x_eq, Sequence& y_eq) const;
 
-  /// out_k = h^{−α} Σ_{m=0}^{k} α_m s_k−m, k = 0..N, for a series s of length N+1 (`reverse`:
-  /// s and out indexed backwards, i.e. the anti-causal Σ_{m=0}^{N−k} α_m s_{k+m}).
-  void gl_sum(const double* s, Eigen::Index stride, double* out, Eigen::Index out_stride,
+  /// out_k = h^{−α} Σ_{m=0}^{k} ω_m s_k−m, k = 0..N, for a series s of length N+1 (`reverse`:
+  /// s and out indexed backwards, i.e. the anti-causal Σ_{m=0}^{N−k} ω_m s_{k+m}); ω = weights().
+  void cq_sum(const double* s, Eigen::Index stride, double* out, Eigen::Index out_stride,
               bool reverse, bool accumulate) const;
 
  private:
@@ -57,9 +58,9 @@ class DiscreteElSystem {
   DiscreteGrid grid_;
   ActionSum sum_;
   double h_, inv_h_, inv_h_alpha_;
-  std::vector<double> weights_;                        // α_0 … α_N
+  std::vector<double> weights_;                        // ω_0 … ω_N (GL: α_0 … α_N)
   Eigen::Index fft_size_ = 0;                          // 0: direct sums
-  std::vector<std::complex<double>> weight_spectrum_;  // half spectrum of h^{−α}·α, padded
+  std::vector<std::complex<double>> weight_spectrum_;  // half spectrum of h^{−α}·ω, padded
 };
 
 }  // namespace fracvi::internal

@@ -16,6 +16,7 @@ const SchemeInfo kFviBdf2{
     .order_rule = "2",
     .stages = 1,
     .variational = true,
+    .variational_quadrature = CqScheme::kBdf2,
     .has_mirror = true,
     .exact_balance = true,
     .applies_to = "every model",

@@ -15,6 +15,7 @@ const SchemeInfo kFviGl{
     .order_rule = "1 (2 when R = 0)",
     .stages = 1,
     .variational = true,
+    .variational_quadrature = CqScheme::kGrunwaldLetnikov,
     .has_mirror = true,
     .exact_balance = true,
     .applies_to = "every model",

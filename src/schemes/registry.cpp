@@ -63,6 +63,23 @@ std::optional<Method> parse_method(std::string_view name) {
   return std::nullopt;
 }
 
+std::string boundary_value_scheme_names() {
+  std::string names;
+  for (const SchemeInfo* info : kSchemes) {
+    if (!info->variational_quadrature) continue;
+    if (!names.empty()) names += ", ";
+    names += info->name;
+  }
+  return names;
+}
+
+CqScheme boundary_value_quadrature(const SchemeInfo& info) {
+  if (info.variational_quadrature) return *info.variational_quadrature;
+  throw ValidationError(
+      "method.scheme = \"" + std::string(info.name) +
+      "\" has no boundary value form (schemes with one: " + boundary_value_scheme_names() + ")");
+}
+
 void check_applicable(const InitialValueProblem& problem, const Method& method) {
   const SchemeInfo& info = method.info();
   if (const std::string rule = info.applicability(problem); !rule.empty()) {

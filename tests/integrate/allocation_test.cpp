@@ -12,31 +12,27 @@
 #include <cstddef>
 #include <cstdlib>
 
+#include "../support/test_problems.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/autodiff_potential.hpp"
 #include "fracvi/model/chain_potential.hpp"
 #include "integrate_test_support.hpp"
 
-#include "../support/allocation_counter.hpp"
+// Interposes malloc for this executable (exactly one translation unit).
+#include "../support/integrator_allocations.hpp"
 
 namespace fracvi {
 namespace {
 
-// Allocations counted while stepping `integ` to the end.
-std::size_t allocations_while_stepping(Integrator& integ) {
-  g_allocations = 0;
-  g_counting = true;
-  Status s = Status::kRunning;
-  while (s == Status::kRunning) s = integ.step();
-  g_counting = false;
-  EXPECT_EQ(s, Status::kSuccess);
-  return g_allocations;
-}
+using test::allocations_while_stepping;
+using test::Duffing2;
+using test::DuffingDynamic;
 
+// The coupled pendula's M and R (test_problems.hpp) with their own forcing, 300 steps on [0, 2].
 InitialValueProblem base(double alpha, std::shared_ptr<const Potential> potential) {
   InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd{{1.5, 0.3}, {0.3, 1.0}};
-  p.model.damping = Eigen::MatrixXd{{0.6, -0.2}, {-0.2, 0.4}};
+  p.model.mass = test::pendula_mass();
+  p.model.damping = test::pendula_damping();
   p.model.alpha = alpha;
   p.model.potential = std::move(potential);
   p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
@@ -49,26 +45,6 @@ InitialValueProblem base(double alpha, std::shared_ptr<const Potential> potentia
   p.steps = 300;
   return p;
 }
-
-std::shared_ptr<const Potential> pendula() {
-  return std::make_shared<const test::PendulumChain>(Eigen::VectorXd{{9.81, 4.0}}, 2.0);
-}
-
-struct Duffing2 {
-  template <class T>
-  T operator()(const Eigen::Matrix<T, 2, 1>& x, T t) const {
-    using std::cos;
-    return T(0.5) * (T(2.0) + cos(t)) * (x(0) * x(0) + x(1) * x(1)) +
-           T(0.25) * x(0) * x(0) * x(0) * x(0);
-  }
-};
-
-struct DuffingDyn {
-  template <class T>
-  T operator()(const Eigen::Matrix<T, Eigen::Dynamic, 1>& x, T) const {
-    return T(0.5) * (x(0) * x(0) + x(1) * x(1)) + T(0.25) * x(0) * x(0) * x(0) * x(0);
-  }
-};
 
 class NoAllocation : public ::testing::Test {
  protected:
@@ -83,29 +59,29 @@ TEST_F(NoAllocation, LinearAlphaHalf) {
 }
 
 TEST_F(NoAllocation, NonlinearAlphaHalf) {
-  Integrator integ(base(0.5, pendula()));
+  Integrator integ(base(0.5, test::pendulum_pair()));
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
 }
 
 TEST_F(NoAllocation, NonlinearFractionalDirectHistory) {
-  Integrator integ(base(0.75, pendula()));
+  Integrator integ(base(0.75, test::pendulum_pair()));
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
 }
 
 TEST_F(NoAllocation, NonlinearFractionalFastHistory) {
   IntegratorOptions options;
   options.history = HistoryKind::kFast;
-  Integrator integ(base(0.75, pendula()), fvi_gl(), options);
+  Integrator integ(base(0.75, test::pendulum_pair()), fvi_gl(), options);
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
 }
 
 TEST_F(NoAllocation, AlphaOneLocalHistory) {
-  Integrator integ(base(1.0, pendula()));
+  Integrator integ(base(1.0, test::pendulum_pair()));
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
 }
 
 TEST_F(NoAllocation, Conservative) {
-  InitialValueProblem p = base(0.5, pendula());
+  InitialValueProblem p = base(0.5, test::pendulum_pair());
   p.model.damping.dense().setZero();
   Integrator integ(p);
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
@@ -184,7 +160,7 @@ TEST_F(NoAllocation, ThreadedChainPotential) {
 // Control: the counter sees allocations — a dynamic-size autodiff potential allocates in every
 // evaluation (documented in autodiff_potential.hpp).
 TEST_F(NoAllocation, ControlDynamicAutodiffAllocates) {
-  Integrator integ(base(0.5, make_autodiff_potential(DuffingDyn{}, 2)));
+  Integrator integ(base(0.5, make_autodiff_potential(DuffingDynamic{}, 2)));
   EXPECT_GT(allocations_while_stepping(integ), 300u);
 }
 

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <vector>
 
+#include "../support/test_problems.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/autodiff_potential.hpp"
 #include "integrate_test_support.hpp"
@@ -17,34 +18,11 @@
 namespace fracvi {
 namespace {
 
-using test::kEps;
-
-InitialValueProblem base(double alpha, Convention convention, std::size_t steps) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd{{2.0, 0.5}, {0.5, 1.0}};
-  p.model.damping = Eigen::MatrixXd{{0.4, 0.1}, {0.1, 0.3}};
-  p.model.alpha = alpha;
-  p.model.convention = convention;
-  p.model.potential = make_quadratic_potential(Eigen::MatrixXd{{3.0, -1.0}, {-1.0, 2.0}},
-                                               Eigen::VectorXd{{0.2, 0.1}});
-  p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
-    f(0) = 0.5 * std::cos(1.3 * t);
-    f(1) = -0.2 * std::cos(1.3 * t);
-  };
-  p.x0 =
-      convention == Convention::kCaputo ? Eigen::VectorXd{{1.0, -0.5}} : Eigen::VectorXd::Zero(2);
-  p.v0 = Eigen::VectorXd{{0.2, 0.7}};
-  p.t_end = 5.0;
-  p.steps = steps;
-  return p;
-}
-
-// Round-off: W is a sum of N terms and the momenta carry O(ε‖p‖) errors per step, so the balance
-// error grows at most like N ε (E + |W|); measured values are printed (≈ 1e-14 … 1e-12).
-double exact_tolerance(const Solution& sol) {
-  const double scale = sol.energy.cwiseAbs().maxCoeff() + sol.dissipated.cwiseAbs().maxCoeff();
-  return static_cast<double>(sol.steps_done) * kEps * scale;
-}
+// The problem of every case is test::balance_problem (test_problems.hpp, shared with the scheme
+// suite): quadratic time-independent U, forcing, damping; Caputo with x0, v0 ≠ 0 or RL with x0 = 0.
+// Round-off: test::balance_tolerance, N ε (max|E| + max|W|) (integrate_test_support.hpp, shared
+// with the scheme suite); measured values are printed (≈ 1e-14 … 1e-12).
+using test::balance_tolerance;
 
 struct ExactCase {
   double alpha;
@@ -59,12 +37,12 @@ TEST_P(ExactBalance, QuadraticTimeIndependentPotential) {
   for (const std::size_t n : {50ul, 400ul, 3200ul}) {
     IntegratorOptions opts;
     opts.mirror = false;
-    const Solution sol = integrate(base(c.alpha, c.convention, n), fvi_gl(), opts);
+    const Solution sol = integrate(test::balance_problem(c.alpha, c.convention, n), fvi_gl(), opts);
     ASSERT_TRUE(sol.ok()) << sol.message;
     std::printf("  %s, N = %4zu: max |E + W - E0| = %.3e (tol %.3e; W_N = %.3f)\n", c.label, n,
-                sol.max_balance_error, exact_tolerance(sol),
+                sol.max_balance_error, balance_tolerance(sol),
                 sol.dissipated(static_cast<Eigen::Index>(n)));
-    EXPECT_LE(sol.max_balance_error, exact_tolerance(sol));
+    EXPECT_LE(sol.max_balance_error, balance_tolerance(sol));
   }
 }
 
@@ -83,7 +61,7 @@ TEST(ExactBalanceControl, TrapezoidalWorkWithoutEndTermsIsNotExact) {
   std::vector<double> hs, errs;
   double scale = 0.0;  // max |E| + max |W|: the round-off scale of the balance
   for (const std::size_t n : {400ul, 800ul, 1600ul, 3200ul}) {
-    const InitialValueProblem p = base(0.5, Convention::kCaputo, n);
+    const InitialValueProblem p = test::balance_problem(0.5, Convention::kCaputo, n);
     IntegratorOptions opts;
     opts.mirror = false;
     const Solution sol = integrate(p, fvi_gl(), opts);
@@ -107,7 +85,7 @@ TEST(ExactBalanceControl, TrapezoidalWorkWithoutEndTermsIsNotExact) {
     errs.push_back(worst);
     std::printf("  N = %4zu: trapezoidal-only balance error %.3e (documented W: %.3e)\n", n, worst,
                 sol.max_balance_error);
-    EXPECT_GT(worst, 1e3 * exact_tolerance(sol));
+    EXPECT_GT(worst, 1e3 * balance_tolerance(sol));
     scale =
         std::max(scale, sol.energy.cwiseAbs().maxCoeff() + sol.dissipated.cwiseAbs().maxCoeff());
   }
@@ -134,7 +112,7 @@ void expect_second_order_balance(const std::shared_ptr<const Potential>& potenti
   std::vector<double> hs, errs;
   double scale = 0.0;  // max |E| + max |W|: the round-off scale of the balance
   for (const std::size_t n : {200ul, 400ul, 800ul, 1600ul, 3200ul}) {
-    InitialValueProblem p = base(alpha, Convention::kCaputo, n);
+    InitialValueProblem p = test::balance_problem(alpha, Convention::kCaputo, n);
     p.model.potential = potential;
     IntegratorOptions opts;
     opts.mirror = false;
@@ -173,7 +151,7 @@ TEST(NonlinearBalance, SecondOrderTimeDependentPotential) {
 // Control for the time-dependence bookkeeping: declaring the same potential time-independent drops
 // the Σ[U(x̄, t_{k+1}) − U(x̄, t_k)] work, and the balance error becomes O(1).
 TEST(NonlinearBalance, UndeclaredTimeDependenceBreaksTheBalance) {
-  InitialValueProblem p = base(0.5, Convention::kCaputo, 800);
+  InitialValueProblem p = test::balance_problem(0.5, Convention::kCaputo, 800);
   AutodiffPotentialOptions wrong;
   wrong.time_dependent = false;
   p.model.potential = make_autodiff_potential<2>(Duffing2{}, 2, wrong);

@@ -26,38 +26,14 @@
 #include "../support/linear_oscillator_reference.hpp"
 #include "../support/order_fit.hpp"
 #include "../support/power_law_solution.hpp"
+#include "../support/test_names.hpp"
+#include "../support/test_problems.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/model/potential.hpp"
 
 namespace fracvi {
 namespace {
-
-/// U(x) = ½ xᵀKx + (ε/4) Σ x_i⁴, hand-written (allocation-free, time-independent).
-class CubicSpringPotential final : public Potential {
- public:
-  CubicSpringPotential(Eigen::MatrixXd stiffness, double cubic)
-      : k_(std::move(stiffness)), eps_(cubic) {}
-  [[nodiscard]] Eigen::Index dimension() const override { return k_.rows(); }
-  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double) const override {
-    return 0.5 * x.dot(k_ * x) + 0.25 * eps_ * x.array().pow(4).sum();
-  }
-  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double,
-                Eigen::Ref<Eigen::VectorXd> g) const override {
-    g.noalias() = k_ * x;
-    g.array() += eps_ * x.array().cube();
-  }
-  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double,
-               Eigen::Ref<Eigen::MatrixXd> h) const override {
-    h = k_;
-    h.diagonal().array() += 3.0 * eps_ * x.array().square();
-  }
-  [[nodiscard]] bool is_time_dependent() const override { return false; }
-
- private:
-  Eigen::MatrixXd k_;
-  double eps_;
-};
 
 struct Study {
   std::vector<double> h;
@@ -106,27 +82,11 @@ Study convergence_study(const std::string& label, const std::vector<std::size_t>
   return s;
 }
 
-/// "0_5" for 0.5: a parameter as it may appear in a test name.
-std::string name_tag(double value) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", value);
-  std::string out(buf);
-  for (char& ch : out) {
-    if (ch == '.') ch = '_';
-  }
-  return out;
-}
+using test::name_tag;  // "0_5" for 0.5 (test_names.hpp)
 
-// The coupled d = 2 matrices of the reference tests: SPD, mutually non-commuting.
-Eigen::MatrixXd mass_matrix() {
-  return Eigen::MatrixXd{{2.0, 0.3}, {0.3, 1.0}};
-}
-Eigen::MatrixXd damping_matrix() {
-  return Eigen::MatrixXd{{0.4, 0.1}, {0.1, 0.2}};
-}
-Eigen::MatrixXd stiffness_matrix() {
-  return Eigen::MatrixXd{{5.0, -1.0}, {-1.0, 3.0}};
-}
+// The problems (test_problems.hpp, shared with the scheme suite) are the coupled d = 2 reference
+// system (SPD, mutually non-commuting M, R, K): test::power_law / test::power_law_problem and
+// test::fractional_oscillator / test::oscillator_problem.
 
 // An order-1 method: slopes within ±0.1 of 1. Below, the fits are taken where the measured local
 // orders (log2 of successive error ratios) are already within 0.1 of 1; a slope outside the band
@@ -145,37 +105,9 @@ constexpr double kRegressionFactor = 1.25;
 constexpr double kPowerLawEnd = 1.0;
 const std::vector<std::size_t> kPowerLawSteps = {64, 128, 256, 512, 1024};
 
-test::PowerLawSolution power_law(double beta, double cubic, double p) {
-  test::PowerLawSolution s;
-  s.mass = mass_matrix();
-  s.damping = damping_matrix();
-  s.stiffness = stiffness_matrix();
-  s.beta = beta;
-  s.cubic = cubic;
-  s.p = p;
-  s.c = Eigen::Vector2d(1.0, -0.5);
-  return s;
-}
-
 InitialValueProblem power_law_problem(const test::PowerLawSolution& s, std::size_t steps,
                                       Convention convention) {
-  InitialValueProblem problem;
-  problem.model.mass = s.mass;
-  problem.model.damping = s.damping;
-  problem.model.alpha = 0.5 * s.beta;
-  problem.model.convention = convention;
-  if (s.cubic == 0.0) {
-    problem.model.potential = make_quadratic_potential(s.stiffness);
-  } else {
-    problem.model.potential = std::make_shared<const CubicSpringPotential>(s.stiffness, s.cubic);
-  }
-  problem.model.forcing = [s](double t, Eigen::Ref<Eigen::VectorXd> out) { out = s.forcing(t); };
-  problem.x0 = Eigen::VectorXd::Zero(2);
-  problem.v0 = Eigen::VectorXd::Zero(2);
-  problem.t0 = 0.0;
-  problem.t_end = kPowerLawEnd;
-  problem.steps = steps;
-  return problem;
+  return test::power_law_problem(s, steps, convention, kPowerLawEnd);
 }
 
 Study power_law_study(const test::PowerLawSolution& s, const std::string& label,
@@ -198,7 +130,7 @@ class PowerLawLinear : public ::testing::TestWithParam<double> {};
 TEST_P(PowerLawLinear, LeadingErrorIsTheGrunwaldLetnikovTruncation) {
   const double beta = GetParam();
   const double p = 3.5;
-  const test::PowerLawSolution s = power_law(beta, 0.0, p);
+  const test::PowerLawSolution s = test::power_law(beta, 0.0, p);
   const Study study = power_law_study(s, power_law_label(beta, 0.0, p));
   EXPECT_NEAR(study.slope, 1.0, kOrderBand);
 
@@ -266,7 +198,7 @@ class PowerLawConvergence : public ::testing::TestWithParam<PowerLawCase> {};
 TEST_P(PowerLawConvergence, FirstOrder) {
   const PowerLawCase c = GetParam();
   const Study study =
-      power_law_study(power_law(c.beta, c.cubic, c.p), power_law_label(c.beta, c.cubic, c.p));
+      power_law_study(test::power_law(c.beta, c.cubic, c.p), power_law_label(c.beta, c.cubic, c.p));
   EXPECT_NEAR(study.slope, 1.0, kOrderBand);
   EXPECT_LT(study.err.back(), kRegressionFactor * c.finest_error);
 }
@@ -286,7 +218,7 @@ INSTANTIATE_TEST_SUITE_P(Cases, PowerLawConvergence,
 
 TEST(PowerLawConventions, RiemannLiouvilleAndCaputoCoincideForZeroData) {
   // x0 = v0 = 0: the Caputo shift subtracts zeros, so the two runs are the same arithmetic.
-  const test::PowerLawSolution s = power_law(1.5, 2.0, 3.5);
+  const test::PowerLawSolution s = test::power_law(1.5, 2.0, 3.5);
   IntegratorOptions options;
   options.mirror = false;
   const Solution caputo =
@@ -310,19 +242,6 @@ const std::vector<std::size_t> kLaplaceSteps = {512, 1024, 2048, 4096, 8192};
 // point). The error is h E(t) with E smooth (period ~3), so the maximum over these 257 points is
 // the grid maximum up to a relative O((2/256)²) — far below the factors tested here.
 constexpr std::size_t kLaplaceSamples = 256;
-
-test::LinearOscillator oscillator(double beta, Convention convention) {
-  test::LinearOscillator ref;
-  ref.mass = mass_matrix();
-  ref.damping = damping_matrix();
-  ref.stiffness = stiffness_matrix();
-  ref.beta = beta;
-  ref.x0 = Eigen::Vector2d(1.0, -0.5);
-  ref.v0 = Eigen::Vector2d(0.3, 0.8);
-  ref.convention = convention == Convention::kCaputo ? test::ReferenceConvention::kCaputo
-                                                     : test::ReferenceConvention::kRiemannLiouville;
-  return ref;
-}
 
 /// The reference on t = 2j/256, after checking it against the independent series at four
 /// points (the series' round-off is ε Σ|terms| ≤ 1e-13 on [0, 2] for these data).
@@ -348,16 +267,7 @@ Study laplace_study(const test::LinearOscillator& ref, Convention convention,
                     StartValue start = StartValue::kDiscreteLegendre) {
   const std::vector<Eigen::VectorXd> exact = laplace_reference(ref);
   const auto make = [&](std::size_t n) {
-    InitialValueProblem problem;
-    problem.model.mass = ref.mass;
-    problem.model.damping = ref.damping;
-    problem.model.alpha = 0.5 * ref.beta;
-    problem.model.convention = convention;
-    problem.model.potential = make_quadratic_potential(ref.stiffness);
-    problem.x0 = ref.x0;
-    problem.v0 = ref.v0;
-    problem.t_end = kLaplaceEnd;
-    problem.steps = n;
+    InitialValueProblem problem = test::oscillator_problem(ref, convention, n, kLaplaceEnd);
     if (half_weight_rl_start) {
       const double h = problem.step_size();
       problem.v0 +=
@@ -379,8 +289,9 @@ class CaputoInitialData : public ::testing::TestWithParam<CaputoCase> {};
 
 TEST_P(CaputoInitialData, FirstOrderAgainstLaplaceInversion) {
   const CaputoCase c = GetParam();
-  const Study study = laplace_study(oscillator(c.beta, Convention::kCaputo), Convention::kCaputo,
-                                    "Caputo, x0, v0 != 0, 2a = " + std::to_string(c.beta));
+  const Study study =
+      laplace_study(test::fractional_oscillator(c.beta, Convention::kCaputo), Convention::kCaputo,
+                    "Caputo, x0, v0 != 0, 2a = " + std::to_string(c.beta));
   EXPECT_NEAR(study.slope, 1.0, kOrderBand);
   EXPECT_LT(study.err.back(), kRegressionFactor * c.finest_error);
 }
@@ -399,7 +310,7 @@ INSTANTIATE_TEST_SUITE_P(DampingOrders, CaputoInitialData,
 TEST_P(CaputoInitialData, NegativeControlSloppyStartBreaksTheBound) {
   const CaputoCase c = GetParam();
   const Study study = laplace_study(
-      oscillator(c.beta, Convention::kCaputo), Convention::kCaputo,
+      test::fractional_oscillator(c.beta, Convention::kCaputo), Convention::kCaputo,
       "negative control: explicit-Euler start, Caputo, 2a = " + std::to_string(c.beta), false,
       {4096, 8192}, StartValue::kExplicitEuler);
   EXPECT_GT(study.err.back(), kRegressionFactor * c.finest_error);
@@ -413,8 +324,8 @@ TEST_P(CaputoInitialData, NegativeControlSloppyStartBreaksTheBound) {
 TEST(RiemannLiouvilleInitialData, FirstOrderAgainstLaplaceInversion) {
   const double beta = 0.5;
   const Study study =
-      laplace_study(oscillator(beta, Convention::kRiemannLiouville), Convention::kRiemannLiouville,
-                    "Riemann-Liouville, x0, v0 != 0, 2a = 0.5");
+      laplace_study(test::fractional_oscillator(beta, Convention::kRiemannLiouville),
+                    Convention::kRiemannLiouville, "Riemann-Liouville, x0, v0 != 0, 2a = 0.5");
   EXPECT_NEAR(study.slope, 1.0, kOrderBand);
 }
 
@@ -424,9 +335,9 @@ TEST(RiemannLiouvilleInitialData, NegativeControlHalfWeightStartCostsTheOrder) {
   // predictor, and the linear step is exact whatever the predictor). Measured before the fix:
   // order 0.49 for 2α = 1/2 (also 0.72 for 2α = 1/4 and 0.25 for 2α = 3/4 in exploration).
   const double beta = 0.5;
-  const Study study =
-      laplace_study(oscillator(beta, Convention::kRiemannLiouville), Convention::kRiemannLiouville,
-                    "negative control: half-weight RL start, 2a = 0.5", true);
+  const Study study = laplace_study(
+      test::fractional_oscillator(beta, Convention::kRiemannLiouville),
+      Convention::kRiemannLiouville, "negative control: half-weight RL start, 2a = 0.5", true);
   EXPECT_NEAR(study.slope, 1.0 - beta, 0.05);
 }
 

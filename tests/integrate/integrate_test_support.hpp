@@ -1,5 +1,7 @@
-// Shared helpers for the integrator tests: reference solutions, potentials; observed orders come
-// from the one shared fit, test::fit_order (../support/order_fit.hpp).
+// Shared helpers for the integrator tests: reference solutions; the potentials are in
+// ../support/test_potentials.hpp, the problem set-ups shared with the scheme suite in
+// ../support/test_problems.hpp; observed orders come from the one shared fit, test::fit_order
+// (../support/order_fit.hpp).
 #pragma once
 
 #include <Eigen/Dense>
@@ -17,6 +19,7 @@
 #include "fracvi/model/potential.hpp"
 
 #include "../support/order_fit.hpp"
+#include "../support/test_potentials.hpp"
 
 namespace fracvi::test {
 
@@ -35,79 +38,13 @@ inline double linear_slope(const std::vector<double>& x, const std::vector<doubl
   return (n * sxy - sx * sy) / (n * sxx - sx * sx);
 }
 
-/// Σ_i (1 − cos x_i) g_i + ½ Σ_{i<d−1} k (x_{i+1} − x_i)²: a chain of coupled pendula,
-/// hand-written (allocation-free), time-independent.
-class PendulumChain final : public Potential {
- public:
-  PendulumChain(Eigen::VectorXd gravity, double coupling) : g_(std::move(gravity)), k_(coupling) {}
-  [[nodiscard]] Eigen::Index dimension() const override { return g_.size(); }
-  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double) const override {
-    double u = 0.0;
-    for (Eigen::Index i = 0; i < x.size(); ++i) u += g_(i) * (1.0 - std::cos(x(i)));
-    for (Eigen::Index i = 0; i + 1 < x.size(); ++i)
-      u += 0.5 * k_ * (x(i + 1) - x(i)) * (x(i + 1) - x(i));
-    return u;
-  }
-  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double,
-                Eigen::Ref<Eigen::VectorXd> g) const override {
-    for (Eigen::Index i = 0; i < x.size(); ++i) g(i) = g_(i) * std::sin(x(i));
-    for (Eigen::Index i = 0; i + 1 < x.size(); ++i) {
-      const double s = k_ * (x(i + 1) - x(i));
-      g(i + 1) += s;
-      g(i) -= s;
-    }
-  }
-  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double,
-               Eigen::Ref<Eigen::MatrixXd> H) const override {
-    H.setZero();
-    for (Eigen::Index i = 0; i < x.size(); ++i) H(i, i) = g_(i) * std::cos(x(i));
-    for (Eigen::Index i = 0; i + 1 < x.size(); ++i) {
-      H(i, i) += k_;
-      H(i + 1, i + 1) += k_;
-      H(i, i + 1) -= k_;
-      H(i + 1, i) -= k_;
-    }
-  }
-  [[nodiscard]] bool is_time_dependent() const override { return false; }
-
- private:
-  Eigen::VectorXd g_;
-  double k_;
-};
-
-/// U∘Λ for Theorem 4.3: value U(Λz), gradient Λᵀ∇U(Λz), Hessian Λᵀ∇²U(Λz)Λ.
-class TransformedPotential final : public Potential {
- public:
-  TransformedPotential(std::shared_ptr<const Potential> inner, Eigen::MatrixXd lambda)
-      : inner_(std::move(inner)), lambda_(std::move(lambda)) {}
-  [[nodiscard]] Eigen::Index dimension() const override { return lambda_.cols(); }
-  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& z, double t) const override {
-    const Eigen::VectorXd x = lambda_ * z;
-    return inner_->value(x, t);
-  }
-  void gradient(const Eigen::Ref<const Eigen::VectorXd>& z, double t,
-                Eigen::Ref<Eigen::VectorXd> g) const override {
-    const Eigen::VectorXd x = lambda_ * z;
-    Eigen::VectorXd gx(x.size());
-    inner_->gradient(x, t, gx);
-    g.noalias() = lambda_.transpose() * gx;
-  }
-  void hessian(const Eigen::Ref<const Eigen::VectorXd>& z, double t,
-               Eigen::Ref<Eigen::MatrixXd> H) const override {
-    const Eigen::VectorXd x = lambda_ * z;
-    Eigen::MatrixXd hx(x.size(), x.size());
-    inner_->hessian(x, t, hx);
-    H.noalias() = lambda_.transpose() * hx * lambda_;
-  }
-  [[nodiscard]] bool has_constant_hessian() const override {
-    return inner_->has_constant_hessian();
-  }
-  [[nodiscard]] bool is_time_dependent() const override { return inner_->is_time_dependent(); }
-
- private:
-  std::shared_ptr<const Potential> inner_;
-  Eigen::MatrixXd lambda_;
-};
+/// Round-off bound of the energy balance error max_k |E_k + W_k − E_0|: W is a sum of N terms and
+/// the momenta carry O(ε‖p‖) errors per step, so the error grows at most like N ε (max|E| +
+/// max|W|).
+inline double balance_tolerance(const Solution& sol) {
+  const double scale = sol.energy.cwiseAbs().maxCoeff() + sol.dissipated.cwiseAbs().maxCoeff();
+  return static_cast<double>(sol.steps_done) * kEps * scale;
+}
 
 /// Exact solution of M x'' + R x' + K x = f̂ cos(ωt) (α = 1/2, linear) at times t: the matrix
 /// exponential of the first-order system augmented with the harmonic oscillator (cos ωt, sin ωt).

@@ -5,6 +5,7 @@
 
 #include <cstdio>
 
+#include "../support/test_problems.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "integrate_test_support.hpp"
 
@@ -15,41 +16,10 @@ using test::kEps;
 
 constexpr std::size_t kN = 400;
 
+// The x-problem: test::forced_pendula (nonlinear, forced, Caputo with x0, v0 ≠ 0); the z-problem:
+// test::transformed_problem (both in test_problems.hpp, shared with the scheme suite).
 InitialValueProblem x_problem(double alpha) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd{{1.5, 0.3}, {0.3, 1.0}};
-  p.model.damping = Eigen::MatrixXd{{0.6, -0.2}, {-0.2, 0.4}};
-  p.model.alpha = alpha;
-  p.model.convention = Convention::kCaputo;
-  p.model.potential =
-      std::make_shared<const test::PendulumChain>(Eigen::VectorXd{{9.81, 4.0}}, 2.0);
-  p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
-    f(0) = 0.3 * std::sin(2.0 * t);
-    f(1) = -0.2 * std::cos(t);
-  };
-  p.x0 = Eigen::VectorXd{{1.2, -0.4}};
-  p.v0 = Eigen::VectorXd{{0.5, 0.8}};
-  p.t_end = 4.0;
-  p.steps = kN;
-  return p;
-}
-
-InitialValueProblem z_problem(const InitialValueProblem& x, const Eigen::MatrixXd& lambda) {
-  InitialValueProblem z = x;
-  const Eigen::MatrixXd lt = lambda.transpose();
-  z.model.mass = lt * x.model.mass.to_dense() * lambda;
-  z.model.damping = lt * x.model.damping.to_dense() * lambda;
-  z.model.potential = std::make_shared<const test::TransformedPotential>(x.model.potential, lambda);
-  const Forcing fx = x.model.forcing;
-  z.model.forcing = [fx, lt](double t, Eigen::Ref<Eigen::VectorXd> out) {
-    Eigen::VectorXd f(lt.cols());
-    fx(t, f);
-    out = lt * f;
-  };
-  const Eigen::PartialPivLU<Eigen::MatrixXd> lu(lambda);
-  z.x0 = lu.solve(x.x0);
-  z.v0 = lu.solve(x.v0);
-  return z;
+  return test::forced_pendula(alpha, kN);
 }
 
 // Round-off budget: the two runs differ by rounding in every matrix product, amplified at most by
@@ -64,7 +34,7 @@ void check(double alpha) {
   opts.mirror = false;
   const InitialValueProblem px = x_problem(alpha);
   const Solution sx = integrate(px, fvi_gl(), opts);
-  const Solution sz = integrate(z_problem(px, lambda), fvi_gl(), opts);
+  const Solution sz = integrate(test::transformed_problem(px, lambda), fvi_gl(), opts);
   ASSERT_TRUE(sx.ok() && sz.ok());
   const RowMatrixXd mapped = sz.x * lambda.transpose();  // rows: (Λ z_k)ᵀ
   const double err = (mapped - sx.x).cwiseAbs().maxCoeff();
@@ -93,8 +63,7 @@ TEST(Theorem43, WrongTransformationIsDetected) {
   IntegratorOptions opts;
   opts.mirror = false;
   const InitialValueProblem px = x_problem(0.75);
-  InitialValueProblem pz = z_problem(px, lambda);
-  pz.model.damping = px.model.damping;
+  const InitialValueProblem pz = test::transformed_problem(px, lambda, /*transform_damping=*/false);
   const Solution sx = integrate(px, fvi_gl(), opts);
   const Solution sz = integrate(pz, fvi_gl(), opts);
   ASSERT_TRUE(sx.ok() && sz.ok());

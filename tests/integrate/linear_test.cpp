@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <vector>
 
+#include "../support/test_problems.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "integrate_test_support.hpp"
 
@@ -14,35 +15,8 @@ namespace {
 
 using test::kEps;
 
-struct LinearSetup {
-  Eigen::MatrixXd M{{2.0, 0.5}, {0.5, 1.0}};
-  Eigen::MatrixXd R{{0.4, 0.1}, {0.1, 0.3}};
-  Eigen::MatrixXd K{{3.0, -1.0}, {-1.0, 2.0}};
-  Eigen::VectorXd fhat{{0.5, -0.2}};
-  double omega = 1.3;
-  Eigen::VectorXd x0{{1.0, -0.5}};
-  Eigen::VectorXd v0{{0.2, 0.7}};
-  double t_end = 5.0;
-
-  [[nodiscard]] InitialValueProblem problem(std::size_t steps, bool damped = true) const {
-    InitialValueProblem p;
-    p.model.mass = M;
-    p.model.damping = damped ? R : Eigen::MatrixXd::Zero(2, 2);
-    p.model.alpha = 0.5;
-    p.model.potential = make_quadratic_potential(K);
-    const Eigen::VectorXd f = fhat;
-    const double w = omega;
-    p.model.forcing = [f, w](double t, Eigen::Ref<Eigen::VectorXd> out) {
-      out = std::cos(w * t) * f;
-    };
-    p.x0 = x0;
-    p.v0 = v0;
-    p.t0 = 0.0;
-    p.t_end = t_end;
-    p.steps = steps;
-    return p;
-  }
-};
+// The problem of every test: test::ViscousOscillator (test_problems.hpp, shared with the scheme
+// suite).
 
 constexpr std::size_t kCoarse = 100;  // reference sampled on the coarsest grid
 const std::vector<std::size_t> kSteps = {800, 1600, 3200, 6400, 12800};
@@ -66,7 +40,7 @@ test::OrderFit fit_v(const Eigen::MatrixXd& exact, const std::vector<double>& hs
 }
 
 TEST(LinearViscous, FirstOrderAgainstMatrixExponential) {
-  const LinearSetup s;
+  const test::ViscousOscillator s;
   const auto times = test::uniform_times(0.0, s.t_end, kCoarse);
   const Eigen::MatrixXd exact =
       test::damped_oscillator_exact(s.M, s.R, s.K, s.fhat, s.omega, s.x0, s.v0, times);
@@ -90,7 +64,7 @@ TEST(LinearViscous, FirstOrderAgainstMatrixExponential) {
 }
 
 TEST(LinearConservative, SecondOrderAgainstMatrixExponential) {
-  const LinearSetup s;
+  const test::ViscousOscillator s;
   const auto times = test::uniform_times(0.0, s.t_end, kCoarse);
   const Eigen::MatrixXd exact = test::damped_oscillator_exact(s.M, Eigen::MatrixXd::Zero(2, 2), s.K,
                                                               s.fhat, s.omega, s.x0, s.v0, times);
@@ -115,7 +89,7 @@ TEST(LinearConservative, SecondOrderAgainstMatrixExponential) {
 // E_k + W_k − E_0 is an identity of the scheme (start_step.md §4), so it holds to round-off.
 // Round-off: each step adds O(ε · E) to W; after N steps ≲ N ε E (random-walk ≈ √N ε E).
 TEST(LinearViscous, EnergyBalanceIsExact) {
-  const LinearSetup s;
+  const test::ViscousOscillator s;
   for (const std::size_t n : {100ul, 1600ul, 12800ul}) {
     const Solution sol = integrate(s.problem(n));
     ASSERT_TRUE(sol.ok());

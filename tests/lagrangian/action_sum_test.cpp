@@ -80,18 +80,28 @@ Measured compare(const DiscreteElResidual& r, const Sequence& grad) {
 }
 
 // Rounding bound: each residual entry is a sum of O(N) terms of size up to
-// h^{−1}·max|∇L| (the Δ_± terms) and h^{−α}·max|∇L| (the GL sums); AD of the action sum adds the
-// same terms in another order. 8ε·N·(largest term) covers both.
-double roundoff_bound(double h, double gradient_scale) {
-  return 8 * kEps * kSteps * gradient_scale / h;
+// h^{−1}·max|∇L| (the Δ_± terms) and h^{−α}·max_n|ω_n|·max|∇L| (the CQ sums; max_n|ω_n| = 1 for
+// the GL weights, ≤ 1.5 for BDF2 with α ≤ 1); AD of the action sum adds the same terms in another
+// order. 8ε·N·(largest term) covers both.
+double roundoff_bound(double h, double gradient_scale, double weight_scale = 1.0) {
+  return 8 * kEps * kSteps * gradient_scale * std::max(1.0, weight_scale) / h;
 }
 
-class RestrictedGradient : public ::testing::TestWithParam<double> {};
+double largest_weight(const DiscreteGrid& g) {
+  double w = 0.0;
+  for (double v : cq_weights(g.quadrature, g.alpha, kSteps + 1)) w = std::max(w, std::abs(v));
+  return w;
+}
+
+// (α, the quadrature of Δ^α_±): the paper's Grünwald–Letnikov weights and the BDF2 ones of
+// `fvi-bdf2` — the derivation of `DiscFracEL` holds for any weights.
+class RestrictedGradient : public ::testing::TestWithParam<std::tuple<double, CqScheme>> {};
 
 TEST_P(RestrictedGradient, ResidualSumIsTheGradientOfTheActionSum) {
-  const double alpha = GetParam();
+  const auto [alpha, quadrature] = GetParam();
   const auto L = make_autodiff_lagrangian(test::Coupled{}, kDim);
-  const DiscreteGrid g = grid(alpha);
+  DiscreteGrid g = grid(alpha);
+  g.quadrature = quadrature;
   std::mt19937_64 rng(2026);
   Sequence x, y;
   random_curves(rng, x, y);
@@ -99,11 +109,23 @@ TEST_P(RestrictedGradient, ResidualSumIsTheGradientOfTheActionSum) {
     const DiscreteElResidual r = discrete_el_residual(*L, x, y, g, sum);
     const Sequence grad = restricted_gradient(x, y, g, sum);
     const Measured m = compare(r, grad);
-    const double tol = roundoff_bound(g.step(), std::max(1.0, m.scale * g.step()));
+    const double tol =
+        roundoff_bound(g.step(), std::max(1.0, m.scale * g.step()), largest_weight(g));
     std::printf(
-        "  alpha %.2f, %s sum: max |x_eq + y_eq - grad/h| = %.2e (|grad/h| %.2e, tol %.2e)\n",
-        alpha, std::string(to_string(sum)).c_str(), m.error, m.scale, tol);
+        "  alpha %.2f, %s, %s sum: max |x_eq + y_eq - grad/h| = %.2e (|grad/h| %.2e, tol "
+        "%.2e)\n",
+        alpha, std::string(to_string(quadrature)).c_str(), std::string(to_string(sum)).c_str(),
+        m.error, m.scale, tol);
     EXPECT_LE(m.error, tol);
+    // Negative control: the residual against the gradient of the action sum with the other
+    // quadrature (the weights really reach both sides).
+    DiscreteGrid other = g;
+    other.quadrature =
+        quadrature == CqScheme::kBdf2 ? CqScheme::kGrunwaldLetnikov : CqScheme::kBdf2;
+    const Measured wrong = compare(r, restricted_gradient(x, y, other, sum));
+    std::printf("    against the action sum with %s weights: %.2e\n",
+                std::string(to_string(other.quadrature)).c_str(), wrong.error);
+    EXPECT_GT(wrong.error, 1e6 * tol);
     // The action sums themselves: functor template and Lagrangian object agree.
     const double a_obj = action_sum(*L, x, y, g, sum);
     const double a_tpl =
@@ -112,7 +134,43 @@ TEST_P(RestrictedGradient, ResidualSumIsTheGradientOfTheActionSum) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Alphas, RestrictedGradient, ::testing::Values(0.5, 0.3, 0.8));
+INSTANTIATE_TEST_SUITE_P(AlphasAndQuadratures, RestrictedGradient,
+                         ::testing::Combine(::testing::Values(0.5, 0.3, 0.8),
+                                            ::testing::Values(CqScheme::kGrunwaldLetnikov,
+                                                              CqScheme::kBdf2)));
+
+TEST(DiscreteGridQuadrature, PhasePointsUseTheOperatorsWeights) {
+  // The phase points of the action sum use the same Δ^α_± as frac_delta_minus/plus with the same
+  // quadrature (one set of weights, cq_weights), and the default is the paper's GL exactly.
+  std::mt19937_64 rng(7);
+  Sequence x, y;
+  random_curves(rng, x, y);
+  for (CqScheme q : {CqScheme::kGrunwaldLetnikov, CqScheme::kBdf2}) {
+    DiscreteGrid g = grid(0.4);
+    g.quadrature = q;
+    const Eigen::MatrixXd z = discrete_phase_points(x, y, g);
+    const double h = g.step();
+    const Sequence dx = frac_delta_minus(x, h, g.alpha, q);
+    const Sequence dy = frac_delta_plus(y, h, g.alpha, q);
+    // Same weights, same terms; the two implementations sum in different orders: N + 1 terms,
+    // each at most h^{−α}·max|ω|·max|x|.
+    const double tol = 4 * kEps * (kSteps + 1) * std::pow(h, -g.alpha) * largest_weight(g) *
+                       std::max(x.cwiseAbs().maxCoeff(), y.cwiseAbs().maxCoeff());
+    EXPECT_LE((z.middleRows(4 * kDim, kDim) - dx).cwiseAbs().maxCoeff(), tol);
+    EXPECT_LE((z.middleRows(5 * kDim, kDim) - dy).cwiseAbs().maxCoeff(), tol);
+  }
+  // Default argument and default grid: bit for bit the Grünwald–Letnikov sums.
+  const double h = 0.1, alpha = 0.4;
+  const auto w = gl_weights(alpha, kSteps + 1);
+  EXPECT_EQ(frac_delta_minus(x, h, alpha), Sequence(convolve_past(w, x) * std::pow(h, -alpha)));
+  EXPECT_EQ(frac_delta_plus(y, h, alpha), Sequence(convolve_future(w, y) * std::pow(h, -alpha)));
+  EXPECT_EQ(DiscreteGrid{}.quadrature, CqScheme::kGrunwaldLetnikov);
+  // BDF2 is a different operator (ω_0 = (3/2)^α, not 1).
+  EXPECT_GT((frac_delta_minus(x, h, alpha, CqScheme::kBdf2) - frac_delta_minus(x, h, alpha))
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-2);
+}
 
 TEST(RestrictedGradient, PrintedEquationsAreNotTheGradientOfThePrintedSum) {
   // The paper's DiscFracEL (= the kExtended residual) against the gradient of DiscActSum as

@@ -1,6 +1,7 @@
 // The variational boundary value problem: the structured Jacobian against central differences,
 // Newton to 1e-10 for a non-mechanical L coupling x and y (dense LU and preconditioned GMRES), the
-// mechanical L reproducing an integrator trajectory from its end points, and failures as status.
+// mechanical L reproducing an integrator trajectory from its end points (fvi-gl with the
+// Grünwald–Letnikov Δ^α_±, fvi-bdf2 with the BDF2 ones), and failures as status.
 #include "fracvi/lagrangian/bvp.hpp"
 
 #include <gtest/gtest.h>
@@ -9,6 +10,7 @@
 
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/expression_potential.hpp"
+#include "fracvi/schemes/registry.hpp"
 #include "lagrangian_test_support.hpp"
 
 namespace fracvi {
@@ -166,16 +168,101 @@ TEST_P(MechanicalBvp, ReproducesTheIntegratorTrajectoryFromItsEndPoints) {
 
 INSTANTIATE_TEST_SUITE_P(Alphas, MechanicalBvp, ::testing::Values(0.5, 0.3));
 
-TEST(SolveBvp, KrylovOnALargerGridMatchesDense) {
-  // n = 2(N−1)d = 1196 unknowns: GMRES on J·v with the width-8 band as preconditioner.
-  const BoundaryValueProblem p = coupled_problem(300);
+// fvi-bdf2 is the same restricted principle with the BDF2 convolution quadrature as Δ^α_±
+// (docs/theory/fvi_bdf2.md §2–3). With x_0 = v_0 = 0 its Taylor split is void (P = 0, F^P = 0),
+// so its x-equation is exactly `DiscEqs` with the BDF2 weights ω^(2α) = ω^(α) * ω^(α): the BVP of
+// the grid with quadrature kBdf2 must return the integrator's trajectory from its end points. The
+// forcing drives the motion.
+class MechanicalBvpBdf2 : public ::testing::TestWithParam<double> {};
+
+TEST_P(MechanicalBvpBdf2, ReproducesTheIntegratorTrajectoryFromItsEndPoints) {
+  const double alpha = GetParam();
+  InitialValueProblem ivp = mechanical_ivp(alpha);
+  ivp.x0.setZero();
+  ivp.v0.setZero();
+  IntegratorOptions io;
+  io.newton.relative_tolerance = 1e-15;
+  io.mirror = false;
+  const Solution sol = integrate(ivp, fvi_bdf2(), io);
+  ASSERT_TRUE(sol.ok()) << sol.message;
+  const auto n = static_cast<Eigen::Index>(ivp.steps);
+  const double amplitude = sol.x.cwiseAbs().maxCoeff();
+  ASSERT_GT(amplitude, 1e-3);  // the forcing moved the system: the comparison is not 0 = 0
+
+  BoundaryValueProblem p;
+  p.lagrangian = std::make_shared<const MechanicalLagrangian>(ivp.model, ivp.t0, ivp.t_end);
+  p.grid = DiscreteGrid{ivp.t0, ivp.t_end, n, alpha};
+  p.grid.quadrature = boundary_value_quadrature(fvi_bdf2().info());
+  ASSERT_EQ(p.grid.quadrature, CqScheme::kBdf2);
+  p.x_start = sol.x.row(0).transpose();
+  p.x_end = sol.x.row(n).transpose();
+  const BvpOptions options;
+  const BvpSolution bvp = solve_bvp(p, options);
+  ASSERT_TRUE(bvp.ok()) << bvp.message;
+  const double dx = (bvp.x - sol.x).cwiseAbs().maxCoeff();
+  const double dy = (bvp.y - sol.x.colwise().reverse()).cwiseAbs().maxCoeff();
+  // Both solve the same equations: the integrator to round-off (Newton at 1e-15 relative), the BVP
+  // to max|F| ≤ residual_tolerance = 1e-10. The equations are M(x_{k+1} − 2x_k + x_{k−1})/h² plus
+  // terms with bounded derivatives, so J ≈ (M/h²)·(second difference) and ‖J⁻¹‖_∞ ≈ ‖M⁻¹‖_∞·h²·
+  // (N²/8) = ‖M⁻¹‖_∞ (b − a)²/8 ≈ 1.3·1/8 ≈ 0.16 (the discrete Green's function of the second
+  // difference; damping and potential perturb it by O(1)). Positions therefore agree to
+  // ≈ 0.16·1e-10 ≈ 2e-11 at worst; the tolerance is 1e-10 (the fvi-gl test's), 6× above that.
+  const double tol = 1e-10;
+  std::printf(
+      "  fvi-bdf2, alpha %.2f: max|x| %.2e, %d Newton iterations, residual %.2e, "
+      "max|x_bvp - x_ivp| = %.2e, max|y_bvp - x_ivp(N-k)| = %.2e (tol %.0e)\n",
+      alpha, amplitude, bvp.newton_iterations, bvp.residual_norm, dx, dy, tol);
+  EXPECT_LE(dx, tol);
+  EXPECT_LE(dy, tol);
+
+  // Negative control: the same end points with the paper's Grünwald–Letnikov Δ^α_± (fvi-gl's BVP)
+  // is a different discretisation — first instead of second order in the memory term — and does
+  // not return the fvi-bdf2 trajectory.
+  p.grid.quadrature = CqScheme::kGrunwaldLetnikov;
+  const BvpSolution gl = solve_bvp(p, options);
+  ASSERT_TRUE(gl.ok()) << gl.message;
+  const double gl_diff = (gl.x - sol.x).cwiseAbs().maxCoeff();
+  std::printf("  Grunwald-Letnikov BVP from the same end points: max|x - x_ivp| = %.2e\n", gl_diff);
+  EXPECT_GT(gl_diff, 1e3 * tol);
+}
+
+INSTANTIATE_TEST_SUITE_P(Alphas, MechanicalBvpBdf2, ::testing::Values(0.5, 0.3, 0.75));
+
+TEST(BoundaryValueQuadrature, EverySchemeNamesItsOwnOrRefuses) {
+  // The registered variational schemes: fvi-gl's Δ^α_± are Grünwald–Letnikov, fvi-bdf2's BDF2.
+  EXPECT_EQ(boundary_value_quadrature(fvi_gl().info()), CqScheme::kGrunwaldLetnikov);
+  EXPECT_EQ(boundary_value_quadrature(fvi_bdf2().info()), CqScheme::kBdf2);
+  EXPECT_EQ(boundary_value_scheme_names(), "fvi-gl, fvi-bdf2");
+  // A scheme without a boundary value form (none is registered yet): one line naming the key, the
+  // value and the rule.
+  SchemeInfo explicit_scheme = fvi_gl().info();
+  explicit_scheme.name = "explicit-cq";
+  explicit_scheme.variational = false;
+  explicit_scheme.variational_quadrature.reset();
+  try {
+    boundary_value_quadrature(explicit_scheme);
+    ADD_FAILURE() << "no exception";
+  } catch (const ValidationError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "method.scheme = \"explicit-cq\" has no boundary value form (schemes with one: "
+              "fvi-gl, fvi-bdf2)");
+  }
+}
+
+class KrylovBvp : public ::testing::TestWithParam<CqScheme> {};
+
+TEST_P(KrylovBvp, OnALargerGridMatchesDense) {
+  // n = 2(N−1)d = 1196 unknowns: GMRES on J·v with the width-8 band as preconditioner, for the
+  // Grünwald–Letnikov and the BDF2 Δ^α_± (the band and the FFT take the grid's weights).
+  BoundaryValueProblem p = coupled_problem(300);
+  p.grid.quadrature = GetParam();
   BvpOptions krylov;
   krylov.linear_solver = BvpLinearSolver::kKrylov;
   const BvpSolution s = solve_bvp(p, krylov);
   ASSERT_TRUE(s.ok()) << s.message;
-  std::printf("  N = 300: %s, %d Newton, %zu GMRES iterations, residual %.2e, %.2f s\n",
-              s.linear_solver.c_str(), s.newton_iterations, s.linear_iterations, s.residual_norm,
-              s.wall_time_seconds);
+  std::printf("  N = 300, %s: %s, %d Newton, %zu GMRES iterations, residual %.2e, %.2f s\n",
+              std::string(to_string(p.grid.quadrature)).c_str(), s.linear_solver.c_str(),
+              s.newton_iterations, s.linear_iterations, s.residual_norm, s.wall_time_seconds);
   EXPECT_LE(s.residual_norm, 1e-10);
   EXPECT_LE(s.linear_iterations, 20u * static_cast<std::size_t>(s.newton_iterations));
   // N + 1 > 256: the GL sums of J·v (and of the residual) run by FFT. Against the exact sparse
@@ -189,6 +276,9 @@ TEST(SolveBvp, KrylovOnALargerGridMatchesDense) {
               exact.cwiseAbs().maxCoeff());
   EXPECT_LE(fft_error, 64 * kEps * 10 * exact.cwiseAbs().maxCoeff());
 }
+
+INSTANTIATE_TEST_SUITE_P(Quadratures, KrylovBvp,
+                         ::testing::Values(CqScheme::kGrunwaldLetnikov, CqScheme::kBdf2));
 
 struct Throwing {
   template <class T>

@@ -75,6 +75,56 @@ class Bvp(unittest.TestCase):
             mirror = max(abs(float(a["y1"]) - float(b["x1"])) for a, b in zip(bvp, reversed(bvp)))
             self.assertLessEqual(mirror, 1e-12)
 
+    def test_bdf2_scheme_of_the_file_reaches_bvp(self):
+        # [method] scheme = "fvi-bdf2" in the file: fracvi bvp solves the restricted principle with
+        # the BDF2 Delta^alpha (docs/theory/fvi_bdf2.md). With zero initial data (the scheme's
+        # Taylor split is void) and forcing, fracvi run with the same file steps exactly these
+        # x-equations, so the BVP from the run's end points returns the run.
+        with tempfile.TemporaryDirectory() as out:
+            with open(data("pendulum_mechanical.toml"), encoding="utf-8") as f:
+                text = f.read()
+            self.assertIn("[method]\n", text)
+            problem = os.path.join(out, "bdf2.toml")
+            with open(problem, "w", encoding="utf-8") as f:
+                f.write(text.replace("[method]\n", '[method]\nscheme = "fvi-bdf2"\n'))
+            zero = ["--set", "initial.position=[0,0]", "--set", "initial.velocity=[0,0]"]
+            r = run("run", problem, "--out", out + "/ivp", "--quiet", "--no-plot", *zero)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            ivp = read_csv(os.path.join(out, "ivp", "trajectory.csv"))
+            self.assertGreater(max(abs(float(row["x1"])) for row in ivp), 1e-3)  # it moved
+            ends = ["--set", "boundary.start=[0,0]",
+                    "--set", "boundary.end=[%s,%s]" % (ivp[-1]["x1"], ivp[-1]["x2"])]
+            r = run("bvp", problem, "--out", out + "/bdf2", *ends)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertIn("fvi-bdf2", r.stdout)
+            s = read_json(os.path.join(out, "bdf2", "summary.json"))
+            self.assertEqual(s["status"], "success")
+            self.assertEqual(s["scheme"], "fvi-bdf2")
+            bdf2 = read_csv(os.path.join(out, "bdf2", "trajectory.csv"))
+            # The BVP stops at max|F| <= 1e-10; its equations are (M/h^2) times a second
+            # difference plus bounded terms, so ||J^-1|| ~ ||M^-1|| (b - a)^2 / 8 ~ 0.16 and the
+            # positions agree to ~2e-11 at worst (17-digit CSV: no extra loss).
+            tol = 1e-10
+            worst = max(abs(float(a[c]) - float(b[c])) for a, b in zip(ivp, bdf2)
+                        for c in ("x1", "x2"))
+            self.assertLessEqual(worst, tol)
+            # The same file with the paper's scheme: the Grunwald-Letnikov Delta^alpha, a different
+            # discretisation (first order in the memory), a different curve.
+            r = run("bvp", problem, "--out", out + "/gl", "--quiet", *ends,
+                    "--set", "method.scheme=fvi-gl")
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertEqual(read_json(os.path.join(out, "gl", "summary.json"))["scheme"], "fvi-gl")
+            gl = read_csv(os.path.join(out, "gl", "trajectory.csv"))
+            differ = max(abs(float(a[c]) - float(b[c])) for a, b in zip(gl, bdf2)
+                         for c in ("x1", "x2"))
+            self.assertGreater(differ, 1e3 * tol)
+            # The resolved problem.toml keeps the scheme: solving it again gives the same curve.
+            r = run("bvp", os.path.join(out, "bdf2", "problem.toml"), "--out", out + "/again",
+                    "--quiet")
+            self.assertEqual(r.returncode, 0, r.stderr)
+            again = read_csv(os.path.join(out, "again", "trajectory.csv"))
+            self.assertEqual([row["x1"] for row in bdf2], [row["x1"] for row in again])
+
     def test_newton_failure_writes_best_iterate(self):
         with tempfile.TemporaryDirectory() as out:
             r = run("bvp", data("coupled_bvp.toml"), "--out", out, "--quiet",

@@ -35,9 +35,12 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <ostream>
 #include <random>
+#include <string>
 #include <vector>
 
+#include "../support/test_names.hpp"
 #include "fracvi/fractional/weights.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/lagrangian/action_sum.hpp"
@@ -273,23 +276,50 @@ std::shared_ptr<const Potential> pendula() {
   return make_autodiff_potential(CoupledPendula{}, kDim);
 }
 
+/// Test-name suffix of the suites parameterised by α: "alpha_0_3".
+std::string alpha_name(const ::testing::TestParamInfo<double>& param_info) {
+  return "alpha_" + test::name_tag(param_info.param);
+}
+
 // ---------------------------------------------------------------------------------------------
 
-class RandomSequences : public ::testing::TestWithParam<double> {};
+// The grid (α = GetParam(), no Taylor split) and the sequences x, y of a RandomSequences test.
+struct Sequences {
+  ActionGrid s;
+  Eigen::MatrixXd x, y;
+};
+
+class RandomSequences : public ::testing::TestWithParam<double> {
+ protected:
+  /// x_k = x_of(k/N), then y_k = y_of(k/N), for k = 0 … N in this order (the generators may
+  /// share one random engine).
+  template <class XOf, class YOf>
+  [[nodiscard]] Sequences sequences(XOf x_of, YOf y_of) const {
+    Sequences q;
+    q.s.alpha = GetParam();
+    q.s.zero_split();
+    q.x.resize(kDim, q.s.n + 1);
+    q.y.resize(kDim, q.s.n + 1);
+    for (Eigen::Index k = 0; k <= q.s.n; ++k) {
+      const double frac = static_cast<double>(k) / static_cast<double>(q.s.n);
+      q.x.col(k) = x_of(frac);
+      q.y.col(k) = y_of(frac);
+    }
+    return q;
+  }
+};
 
 TEST_P(RandomSequences, Bdf2DiscEqsIsTheRestrictedGradientOfTheBdf2ActionSum) {
-  ActionGrid s;
-  s.alpha = GetParam();
-  s.zero_split();
   std::mt19937_64 rng(2027);
   std::uniform_real_distribution<double> noise(-0.1, 0.1);
-  Eigen::MatrixXd x(kDim, s.n + 1), y(kDim, s.n + 1);
-  for (Eigen::Index k = 0; k <= s.n; ++k) {
-    const double frac = static_cast<double>(k) / static_cast<double>(s.n);
-    x.col(k) =
-        Eigen::Vector2d(0.4 + std::sin(2 * frac) + noise(rng), 0.5 - frac * frac + noise(rng));
-    y.col(k) = Eigen::Vector2d(0.3 * std::cos(3 * frac) + noise(rng), frac + noise(rng));
-  }
+  const auto [s, x, y] = sequences(
+      [&](double frac) {
+        return Eigen::Vector2d(0.4 + std::sin(2 * frac) + noise(rng),
+                               0.5 - frac * frac + noise(rng));
+      },
+      [&](double frac) {
+        return Eigen::Vector2d(0.3 * std::cos(3 * frac) + noise(rng), frac + noise(rng));
+      });
   const auto u = pendula();
   const Equations e = disc_eqs(x, y, s, *u);
   const Eigen::MatrixXd scheme = -(e.ex + e.ey);
@@ -309,16 +339,10 @@ TEST_P(RandomSequences, Bdf2DiscEqsIsTheRestrictedGradientOfTheBdf2ActionSum) {
 }
 
 TEST_P(RandomSequences, MemoryGradientsAreTheDampingSumsOfBothEquations) {
-  ActionGrid s;
-  s.alpha = GetParam();
-  s.zero_split();
   std::mt19937_64 rng(31);
   std::uniform_real_distribution<double> v(-1.0, 1.0);
-  Eigen::MatrixXd x(kDim, s.n + 1), y(kDim, s.n + 1);
-  for (Eigen::Index k = 0; k <= s.n; ++k) {
-    x.col(k) = Eigen::Vector2d(v(rng), v(rng));
-    y.col(k) = Eigen::Vector2d(v(rng), v(rng));
-  }
+  const auto uniform = [&](double) { return Eigen::Vector2d(v(rng), v(rng)); };
+  const auto [s, x, y] = sequences(uniform, uniform);
   const auto u = pendula();
   const Equations e = disc_eqs(x, y, s, *u);
   const auto w = cq_weights(CqScheme::kBdf2, s.alpha, static_cast<std::size_t>(s.n + 1));
@@ -340,7 +364,7 @@ TEST_P(RandomSequences, MemoryGradientsAreTheDampingSumsOfBothEquations) {
   EXPECT_GT(swapped, kControlFactor * tol);
 }
 
-INSTANTIATE_TEST_SUITE_P(Alphas, RandomSequences, ::testing::Values(0.3, 0.5, 0.75));
+INSTANTIATE_TEST_SUITE_P(Alphas, RandomSequences, ::testing::Values(0.3, 0.5, 0.75), alpha_name);
 
 // ---------------------------------------------------------------------------------------------
 
@@ -400,7 +424,8 @@ TEST_P(IntegratorTrajectory, SolvesTheRestrictedEquationsOfTheBdf2ActionSum) {
   EXPECT_GT(res_gl, kControlFactor * tol);
 }
 
-INSTANTIATE_TEST_SUITE_P(Alphas, IntegratorTrajectory, ::testing::Values(0.3, 0.5, 0.75));
+INSTANTIATE_TEST_SUITE_P(Alphas, IntegratorTrajectory, ::testing::Values(0.3, 0.5, 0.75),
+                         alpha_name);
 
 // ---------------------------------------------------------------------------------------------
 
@@ -423,6 +448,11 @@ struct SplitCase {
   double alpha;
   Convention convention;
 };
+
+// How gtest prints a case (also in ctest's test list), instead of its bytes.
+void PrintTo(const SplitCase& c, std::ostream* os) {
+  *os << to_string(c.convention) << ", alpha " << c.alpha;
+}
 
 class TaylorSplitTrajectory : public ::testing::TestWithParam<SplitCase> {};
 
@@ -478,7 +508,12 @@ INSTANTIATE_TEST_SUITE_P(Conventions, TaylorSplitTrajectory,
                          ::testing::Values(SplitCase{0.3, Convention::kCaputo},
                                            SplitCase{0.3, Convention::kRiemannLiouville},
                                            SplitCase{0.5, Convention::kCaputo},
-                                           SplitCase{0.75, Convention::kCaputo}));
+                                           SplitCase{0.75, Convention::kCaputo}),
+                         [](const ::testing::TestParamInfo<SplitCase>& param_info) {
+                           // "caputo_alpha_0_3", "riemann_liouville_alpha_0_3"
+                           return test::name_tag(to_string(param_info.param.convention)) +
+                                  "_alpha_" + test::name_tag(param_info.param.alpha);
+                         });
 
 }  // namespace
 }  // namespace fracvi

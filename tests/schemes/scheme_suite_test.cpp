@@ -31,6 +31,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <ostream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -39,6 +40,8 @@
 #include "../support/linear_oscillator_reference.hpp"
 #include "../support/order_fit.hpp"
 #include "../support/power_law_solution.hpp"
+#include "../support/test_names.hpp"
+#include "../support/test_problems.hpp"
 #include "fracvi/core/error.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/autodiff_potential.hpp"
@@ -48,9 +51,16 @@
 #include "fracvi/schemes/stepper.hpp"
 
 // Interposes malloc for this executable (exactly one translation unit).
-#include "../support/allocation_counter.hpp"
+#include "../support/integrator_allocations.hpp"
 
 namespace fracvi {
+
+// How gtest prints the parameter (also in ctest's test list): the registry name, not the address.
+// In namespace fracvi, where argument-dependent lookup finds it for a const SchemeInfo*.
+void PrintTo(const SchemeInfo* info, std::ostream* os) {
+  *os << info->name;
+}
+
 namespace {
 
 using test::kEps;
@@ -75,11 +85,9 @@ constexpr double kRandomWalkFactor = 16.0;
 constexpr double kTightNewton = 1e-14;
 
 // (c) The balance error accumulates ε (E + |W|) per step: bound N ε (max|E| + max|W|)
-// (tests/integrate/energy_balance_test.cpp; measured 1e-14 … 1e-12).
-double balance_tolerance(const Solution& sol) {
-  const double scale = sol.energy.cwiseAbs().maxCoeff() + sol.dissipated.cwiseAbs().maxCoeff();
-  return static_cast<double>(sol.steps_done) * kEps * scale;
-}
+// (test::balance_tolerance, shared with tests/integrate/energy_balance_test.cpp; measured
+// 1e-14 … 1e-12).
+using test::balance_tolerance;
 
 /// "1.234e-15": a measured value for RecordProperty (std::to_string would print 0.000000).
 std::string sci(double value) {
@@ -90,6 +98,8 @@ std::string sci(double value) {
 
 // ---------------------------------------------------------------------------------------------
 // The parameter: one registry row.
+
+struct OrderCase;
 
 class SchemeSuite : public ::testing::TestWithParam<const SchemeInfo*> {
  protected:
@@ -112,14 +122,12 @@ class SchemeSuite : public ::testing::TestWithParam<const SchemeInfo*> {
                 label.c_str(), why.c_str());
     return true;
   }
+  /// (a) The declared order for each case within the scheme's domain (the others are skipped).
+  void expect_declared_orders(const std::vector<OrderCase>& cases) const;
 };
 
 std::string test_name(const ::testing::TestParamInfo<const SchemeInfo*>& param_info) {
-  std::string out(param_info.param->name);
-  for (char& ch : out) {
-    if (ch == '-') ch = '_';
-  }
-  return out;
+  return test::name_tag(param_info.param->name);
 }
 
 INSTANTIATE_TEST_SUITE_P(Registry, SchemeSuite, ::testing::ValuesIn(registered_schemes()),
@@ -127,32 +135,6 @@ INSTANTIATE_TEST_SUITE_P(Registry, SchemeSuite, ::testing::ValuesIn(registered_s
 
 // ---------------------------------------------------------------------------------------------
 // Potentials.
-
-/// U(x) = ½ xᵀKx + (ε/4) Σ x_i⁴ (the power-law cubic spring), allocation-free, time-independent.
-class CubicSpringPotential final : public Potential {
- public:
-  CubicSpringPotential(Eigen::MatrixXd stiffness, double cubic)
-      : k_(std::move(stiffness)), eps_(cubic) {}
-  [[nodiscard]] Eigen::Index dimension() const override { return k_.rows(); }
-  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double) const override {
-    return 0.5 * x.dot(k_ * x) + 0.25 * eps_ * x.array().pow(4).sum();
-  }
-  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double,
-                Eigen::Ref<Eigen::VectorXd> g) const override {
-    g.noalias() = k_ * x;
-    g.array() += eps_ * x.array().cube();
-  }
-  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double,
-               Eigen::Ref<Eigen::MatrixXd> h) const override {
-    h = k_;
-    h.diagonal().array() += 3.0 * eps_ * x.array().square();
-  }
-  [[nodiscard]] bool is_time_dependent() const override { return false; }
-
- private:
-  Eigen::MatrixXd k_;
-  double eps_;
-};
 
 /// The coupled pendula of the integrate tests, failing once evaluated at t > t_fail: by throwing
 /// (kThrow) or by returning NaN (kNaN). Declared time-dependent: its behaviour depends on t.
@@ -189,30 +171,8 @@ class FailingPendula final : public Potential {
 };
 
 // ---------------------------------------------------------------------------------------------
-// Problems (the integrate tests' d = 2 systems: SPD, non-diagonal, mutually non-commuting).
-
-const Eigen::MatrixXd kPendulaMass{{1.5, 0.3}, {0.3, 1.0}};
-const Eigen::MatrixXd kPendulaDamping{{0.6, -0.2}, {-0.2, 0.4}};  // λ_max(M⁻¹R) = 0.75
-
-/// Coupled pendula, forced, Caputo, x0, v0 ≠ 0 (mirror_test, invariance_test, allocation_test).
-InitialValueProblem pendula(double alpha, std::size_t steps, double t_end = 4.0) {
-  InitialValueProblem p;
-  p.model.mass = kPendulaMass;
-  p.model.damping = kPendulaDamping;
-  p.model.alpha = alpha;
-  p.model.convention = Convention::kCaputo;
-  p.model.potential =
-      std::make_shared<const test::PendulumChain>(Eigen::VectorXd{{9.81, 4.0}}, 2.0);
-  p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
-    f(0) = 0.3 * std::sin(2.0 * t);
-    f(1) = -0.2 * std::cos(t);
-  };
-  p.x0 = Eigen::VectorXd{{1.2, -0.4}};
-  p.v0 = Eigen::VectorXd{{0.5, 0.8}};
-  p.t_end = t_end;
-  p.steps = steps;
-  return p;
-}
+// Problems: the integrate tests' d = 2 systems (SPD, non-diagonal, mutually non-commuting), built
+// by the same code as there (tests/support/test_problems.hpp).
 
 // ---------------------------------------------------------------------------------------------
 // (a) Orders.
@@ -265,38 +225,18 @@ void expect_declared_order(const SchemeInfo& info, const OrderCase& c) {
   }
 }
 
-// The damped oscillator 2α = 1 of tests/integrate/linear_test.cpp (forced, x0, v0 ≠ 0), exact by
-// the matrix exponential. Steps: h = 1.25e-2 … 7.8e-4 on [0, 5].
+// The damped oscillator 2α = 1 of tests/integrate/linear_test.cpp (test::ViscousOscillator: forced,
+// x0, v0 ≠ 0), exact by the matrix exponential. Steps: h = 1.25e-2 … 7.8e-4 on [0, 5].
 OrderCase damped_oscillator_case(bool damped) {
-  const Eigen::MatrixXd m{{2.0, 0.5}, {0.5, 1.0}};
-  const Eigen::MatrixXd r =
-      damped ? Eigen::MatrixXd{{0.4, 0.1}, {0.1, 0.3}} : Eigen::MatrixXd::Zero(2, 2);
-  const Eigen::MatrixXd k{{3.0, -1.0}, {-1.0, 2.0}};
-  const Eigen::VectorXd fhat{{0.5, -0.2}};
-  const double omega = 1.3;
-  const Eigen::VectorXd x0{{1.0, -0.5}}, v0{{0.2, 0.7}};
-  const double t_end = 5.0;
+  const test::ViscousOscillator s;
   OrderCase c;
   c.label = damped ? "damped_oscillator" : "undamped_oscillator";
   c.steps = {400, 800, 1600, 3200, 6400};
   c.samples = 100;
-  c.make = [=](std::size_t n) {
-    InitialValueProblem p;
-    p.model.mass = m;
-    p.model.damping = r;
-    p.model.alpha = 0.5;
-    p.model.potential = make_quadratic_potential(k);
-    p.model.forcing = [fhat, omega](double t, Eigen::Ref<Eigen::VectorXd> out) {
-      out = std::cos(omega * t) * fhat;
-    };
-    p.x0 = x0;
-    p.v0 = v0;
-    p.t_end = t_end;
-    p.steps = n;
-    return p;
-  };
-  c.reference = test::damped_oscillator_exact(m, r, k, fhat, omega, x0, v0,
-                                              test::uniform_times(0.0, t_end, c.samples));
+  c.make = [s, damped](std::size_t n) { return s.problem(n, damped); };
+  c.reference = test::damped_oscillator_exact(s.M, damped ? s.R : Eigen::MatrixXd::Zero(2, 2), s.K,
+                                              s.fhat, s.omega, s.x0, s.v0,
+                                              test::uniform_times(0.0, s.t_end, c.samples));
   return c;
 }
 
@@ -308,14 +248,7 @@ OrderCase damped_oscillator_case(bool damped) {
 // orders 0.65, 0.85, 0.93, 0.97 (linear) and 0.52, 0.81, 0.91, 0.96 (cubic), fitted slopes 0.86
 // and 0.81; from 1/256 on the local orders are ≥ 0.93 and still rising towards 1.
 OrderCase power_law_case(double beta, double cubic) {
-  test::PowerLawSolution s;
-  s.mass = Eigen::MatrixXd{{2.0, 0.3}, {0.3, 1.0}};
-  s.damping = Eigen::MatrixXd{{0.4, 0.1}, {0.1, 0.2}};
-  s.stiffness = Eigen::MatrixXd{{5.0, -1.0}, {-1.0, 3.0}};
-  s.beta = beta;
-  s.cubic = cubic;
-  s.p = 3.5;
-  s.c = Eigen::Vector2d(1.0, -0.5);
+  const test::PowerLawSolution s = test::power_law(beta, cubic, 3.5);
   char label[64];
   std::snprintf(label, sizeof label, "power_law_%s_2a_%02d", cubic == 0.0 ? "linear" : "cubic",
                 static_cast<int>(std::lround(10.0 * beta)));
@@ -324,20 +257,7 @@ OrderCase power_law_case(double beta, double cubic) {
   c.steps = {256, 512, 1024, 2048, 4096};
   c.samples = 64;
   c.make = [s](std::size_t n) {
-    InitialValueProblem p;
-    p.model.mass = s.mass;
-    p.model.damping = s.damping;
-    p.model.alpha = 0.5 * s.beta;
-    p.model.convention = Convention::kCaputo;
-    p.model.potential = s.cubic == 0.0
-                            ? make_quadratic_potential(s.stiffness)
-                            : std::make_shared<const CubicSpringPotential>(s.stiffness, s.cubic);
-    p.model.forcing = [s](double t, Eigen::Ref<Eigen::VectorXd> out) { out = s.forcing(t); };
-    p.x0 = Eigen::VectorXd::Zero(2);
-    p.v0 = Eigen::VectorXd::Zero(2);
-    p.t_end = 1.0;
-    p.steps = n;
-    return p;
+    return test::power_law_problem(s, n, Convention::kCaputo, /*t_end=*/1.0);
   };
   c.reference.resize(static_cast<Eigen::Index>(c.samples + 1), 4);
   for (std::size_t j = 0; j <= c.samples; ++j) {
@@ -352,14 +272,7 @@ OrderCase power_law_case(double beta, double cubic) {
 // h = 2/512 … 2/8192 (fractional_convergence_test.cpp: coarser grids are pre-asymptotic for
 // fvi-gl, error ≈ A h (1 − 27 h)).
 OrderCase caputo_data_case(double beta) {
-  test::LinearOscillator ref;
-  ref.mass = Eigen::MatrixXd{{2.0, 0.3}, {0.3, 1.0}};
-  ref.damping = Eigen::MatrixXd{{0.4, 0.1}, {0.1, 0.2}};
-  ref.stiffness = Eigen::MatrixXd{{5.0, -1.0}, {-1.0, 3.0}};
-  ref.beta = beta;
-  ref.x0 = Eigen::Vector2d(1.0, -0.5);
-  ref.v0 = Eigen::Vector2d(0.3, 0.8);
-  ref.convention = test::ReferenceConvention::kCaputo;
+  const test::LinearOscillator ref = test::fractional_oscillator(beta, Convention::kCaputo);
   const double t_end = 2.0;
   char label[64];
   std::snprintf(label, sizeof label, "caputo_data_2a_%02d",
@@ -369,17 +282,7 @@ OrderCase caputo_data_case(double beta) {
   c.steps = {512, 1024, 2048, 4096, 8192};
   c.samples = 256;
   c.make = [ref, t_end](std::size_t n) {
-    InitialValueProblem p;
-    p.model.mass = ref.mass;
-    p.model.damping = ref.damping;
-    p.model.alpha = 0.5 * ref.beta;
-    p.model.convention = Convention::kCaputo;
-    p.model.potential = make_quadratic_potential(ref.stiffness);
-    p.x0 = ref.x0;
-    p.v0 = ref.v0;
-    p.t_end = t_end;
-    p.steps = n;
-    return p;
+    return test::oscillator_problem(ref, Convention::kCaputo, n, t_end);
   };
   const test::LaplaceInversion inversion(ref);
   c.reference.resize(static_cast<Eigen::Index>(c.samples + 1), 2);
@@ -397,43 +300,34 @@ OrderCase pendula_case() {
   c.label = "pendula_viscous";
   c.steps = {400, 800, 1600, 3200, 6400};
   c.samples = 100;
-  c.make = [](std::size_t n) { return pendula(0.5, n); };
+  c.make = [](std::size_t n) { return test::forced_pendula(0.5, n); };
   const InitialValueProblem base = c.make(c.steps.front());
   c.reference = test::dopri5_reference(base.model, base.x0, base.v0,
                                        test::uniform_times(base.t0, base.t_end, c.samples), 1e-12);
   return c;
 }
 
-TEST_P(SchemeSuite, DeclaredOrderLinearDampedOscillator) {
-  for (const bool damped : {true, false}) {
-    const OrderCase c = damped_oscillator_case(damped);
+void SchemeSuite::expect_declared_orders(const std::vector<OrderCase>& cases) const {
+  for (const OrderCase& c : cases) {
     if (skip_case(c.label, c.make(c.steps.front()))) continue;
     expect_declared_order(info(), c);
   }
+}
+
+TEST_P(SchemeSuite, DeclaredOrderLinearDampedOscillator) {
+  expect_declared_orders({damped_oscillator_case(true), damped_oscillator_case(false)});
 }
 
 TEST_P(SchemeSuite, DeclaredOrderLinearFractionalPowerLaw) {
-  for (const double beta : {0.6, 1.5}) {
-    const OrderCase c = power_law_case(beta, 0.0);
-    if (skip_case(c.label, c.make(c.steps.front()))) continue;
-    expect_declared_order(info(), c);
-  }
+  expect_declared_orders({power_law_case(0.6, 0.0), power_law_case(1.5, 0.0)});
 }
 
 TEST_P(SchemeSuite, DeclaredOrderLinearFractionalCaputoData) {
-  for (const double beta : {0.6, 1.5}) {
-    const OrderCase c = caputo_data_case(beta);
-    if (skip_case(c.label, c.make(c.steps.front()))) continue;
-    expect_declared_order(info(), c);
-  }
+  expect_declared_orders({caputo_data_case(0.6), caputo_data_case(1.5)});
 }
 
 TEST_P(SchemeSuite, DeclaredOrderNonlinearCubicPowerLaw) {
-  for (const double beta : {0.6, 1.5}) {
-    const OrderCase c = power_law_case(beta, 2.0);
-    if (skip_case(c.label, c.make(c.steps.front()))) continue;
-    expect_declared_order(info(), c);
-  }
+  expect_declared_orders({power_law_case(0.6, 2.0), power_law_case(1.5, 2.0)});
 }
 
 TEST_P(SchemeSuite, DeclaredOrderNonlinearPendulaAgainstDopri5) {
@@ -452,7 +346,7 @@ TEST_P(SchemeSuite, MirrorErrorAtRoundOff) {
   int ran = 0;
   // Caputo with x0, v0 ≠ 0, so the mirrored treatment of the initial data is exercised.
   for (const double alpha : {0.5, 0.3, 0.75}) {
-    const InitialValueProblem p = pendula(alpha, kN);
+    const InitialValueProblem p = test::forced_pendula(alpha, kN);
     const std::string label = "alpha " + std::to_string(alpha) + " Caputo";
     if (skip_case(label, p)) continue;
     ++ran;
@@ -477,27 +371,11 @@ TEST_P(SchemeSuite, MirrorErrorAtRoundOff) {
 // ---------------------------------------------------------------------------------------------
 // (c) Energy balance.
 
-/// The balance problem of tests/integrate/energy_balance_test.cpp: U = ½xᵀKx − bᵀx (quadratic,
-/// time-independent), forcing, damping (λ_max(M⁻¹R) = 0.31: 2α = 2 stays inside the bounds).
+/// The balance problem of tests/integrate/energy_balance_test.cpp (test::balance_problem: U =
+/// ½xᵀKx − bᵀx, quadratic, time-independent; forcing) with half its damping (λ_max(M⁻¹R) = 0.16:
+/// 2α = 2 stays inside the bounds).
 InitialValueProblem balance_problem(double alpha, Convention convention, std::size_t steps) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd{{2.0, 0.5}, {0.5, 1.0}};
-  p.model.damping = Eigen::MatrixXd{{0.2, 0.05}, {0.05, 0.15}};
-  p.model.alpha = alpha;
-  p.model.convention = convention;
-  p.model.potential = make_quadratic_potential(Eigen::MatrixXd{{3.0, -1.0}, {-1.0, 2.0}},
-                                               Eigen::VectorXd{{0.2, 0.1}});
-  p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
-    f(0) = 0.5 * std::cos(1.3 * t);
-    f(1) = -0.2 * std::cos(1.3 * t);
-  };
-  // RL with 2α > 1 and x0 ≠ 0 is ill-posed: the RL case starts from x0 = 0.
-  p.x0 =
-      convention == Convention::kCaputo ? Eigen::VectorXd{{1.0, -0.5}} : Eigen::VectorXd::Zero(2);
-  p.v0 = Eigen::VectorXd{{0.2, 0.7}};
-  p.t_end = 5.0;
-  p.steps = steps;
-  return p;
+  return test::balance_problem(alpha, convention, steps, /*damping_scale=*/0.5);
 }
 
 TEST_P(SchemeSuite, EnergyBalanceExactForQuadraticPotential) {
@@ -535,8 +413,7 @@ TEST_P(SchemeSuite, EnergyBalanceExactForQuadraticPotential) {
 TEST_P(SchemeSuite, EnergyBalanceNegativeControlNonlinearPotential) {
   if (!info().exact_balance) GTEST_SKIP() << name() << " does not claim an exact balance";
   InitialValueProblem p = balance_problem(0.75, Convention::kCaputo, 400);
-  p.model.potential =
-      std::make_shared<const test::PendulumChain>(Eigen::VectorXd{{9.81, 4.0}}, 2.0);
+  p.model.potential = test::pendulum_pair();
   if (skip_case("pendula", p)) GTEST_SKIP();
   IntegratorOptions options;
   options.mirror = false;
@@ -551,45 +428,17 @@ TEST_P(SchemeSuite, EnergyBalanceNegativeControlNonlinearPotential) {
 // ---------------------------------------------------------------------------------------------
 // (d) No allocation in the step loop.
 
-struct Duffing2 {
-  template <class T>
-  T operator()(const Eigen::Matrix<T, 2, 1>& x, T t) const {
-    using std::cos;
-    return T(0.5) * (T(2.0) + cos(t)) * (x(0) * x(0) + x(1) * x(1)) +
-           T(0.25) * x(0) * x(0) * x(0) * x(0);
-  }
-};
-
-struct DuffingDynamic {
-  template <class T>
-  T operator()(const Eigen::Matrix<T, Eigen::Dynamic, 1>& x, T) const {
-    return T(0.5) * (x(0) * x(0) + x(1) * x(1)) + T(0.25) * x(0) * x(0) * x(0) * x(0);
-  }
-};
-
-/// Allocations counted while stepping `integ` to the end (construction is not counted).
-std::size_t allocations_while_stepping(Integrator& integ) {
-  g_allocations = 0;
-  g_counting = true;
-  Status s = Status::kRunning;
-  while (s == Status::kRunning) s = integ.step();
-  g_counting = false;
-  EXPECT_EQ(s, Status::kSuccess);
-  return g_allocations;
-}
-
 InitialValueProblem allocation_problem(double alpha, std::shared_ptr<const Potential> potential) {
-  InitialValueProblem p = pendula(alpha, 300, 2.0);
+  InitialValueProblem p = test::forced_pendula(alpha, 300, 2.0);
   // λ_max(M⁻¹R) = 0.19: 2α = 2 stays inside every bound of the registry today.
-  p.model.damping = 0.25 * kPendulaDamping;
+  p.model.damping = 0.25 * test::pendula_damping();
   p.model.potential = std::move(potential);
   return p;
 }
 
 TEST_P(SchemeSuite, StepLoopDoesNotAllocate) {
   if (!FRACVI_COUNT_MALLOC) GTEST_SKIP() << "malloc interposition unavailable (sanitizer build)";
-  const auto pendula_u =
-      std::make_shared<const test::PendulumChain>(Eigen::VectorXd{{9.81, 4.0}}, 2.0);
+  const auto pendula_u = test::pendulum_pair();
   struct Case {
     const char* label;
     double alpha;
@@ -606,7 +455,7 @@ TEST_P(SchemeSuite, StepLoopDoesNotAllocate) {
       {"nonlinear alpha 1", 1.0, pendula_u, HistoryKind::kAuto, false},
       {"no potential alpha 0.3", 0.3, nullptr, HistoryKind::kAuto, false},
       {"R = 0", 0.5, pendula_u, HistoryKind::kAuto, true},
-      {"fixed-size autodiff alpha 0.75", 0.75, make_autodiff_potential<2>(Duffing2{}),
+      {"fixed-size autodiff alpha 0.75", 0.75, make_autodiff_potential<2>(test::Duffing2{}),
        HistoryKind::kAuto, false},
   };
   int ran = 0;
@@ -618,7 +467,7 @@ TEST_P(SchemeSuite, StepLoopDoesNotAllocate) {
     IntegratorOptions options;
     options.history = c.history;
     Integrator integ(p, method(), options);
-    const std::size_t allocations = allocations_while_stepping(integ);
+    const std::size_t allocations = test::allocations_while_stepping(integ);
     std::printf("  %s, %s: %zu allocations in %zu steps\n", name().c_str(), c.label, allocations,
                 p.steps);
     EXPECT_EQ(allocations, 0u) << c.label;
@@ -627,9 +476,9 @@ TEST_P(SchemeSuite, StepLoopDoesNotAllocate) {
 
   // Control: a dynamic-size autodiff potential allocates in every evaluation
   // (autodiff_potential.hpp), so the counter is live in this executable.
-  Integrator control(allocation_problem(0.5, make_autodiff_potential(DuffingDynamic{}, 2)),
+  Integrator control(allocation_problem(0.5, make_autodiff_potential(test::DuffingDynamic{}, 2)),
                      method());
-  const std::size_t control_allocations = allocations_while_stepping(control);
+  const std::size_t control_allocations = test::allocations_while_stepping(control);
   std::printf("  %s, control (dynamic-size autodiff): %zu allocations\n", name().c_str(),
               control_allocations);
   EXPECT_GT(control_allocations, 300u);  // at least one per step
@@ -648,7 +497,7 @@ TEST_P(SchemeSuite, FailingRunKeepsPartialTrajectory) {
   int ran = 0;
   for (const Case c : {Case{FailingPendula::Mode::kThrow, "potential throws"},
                        Case{FailingPendula::Mode::kNaN, "potential turns NaN"}}) {
-    InitialValueProblem p = pendula(0.75, kN, kTEnd);
+    InitialValueProblem p = test::forced_pendula(0.75, kN, kTEnd);
     p.model.potential = std::make_shared<const FailingPendula>(kTFail, c.mode);
     if (skip_case(c.label, p)) continue;
     ++ran;
@@ -682,25 +531,6 @@ TEST_P(SchemeSuite, FailingRunKeepsPartialTrajectory) {
 // ---------------------------------------------------------------------------------------------
 // (f) Theorem 4.3: invariance under x = Λz.
 
-InitialValueProblem transformed(const InitialValueProblem& x, const Eigen::MatrixXd& lambda,
-                                bool transform_damping = true) {
-  InitialValueProblem z = x;
-  const Eigen::MatrixXd lt = lambda.transpose();
-  z.model.mass = lt * x.model.mass.to_dense() * lambda;
-  if (transform_damping) z.model.damping = lt * x.model.damping.to_dense() * lambda;
-  z.model.potential = std::make_shared<const test::TransformedPotential>(x.model.potential, lambda);
-  const Forcing fx = x.model.forcing;
-  z.model.forcing = [fx, lt](double t, Eigen::Ref<Eigen::VectorXd> out) {
-    Eigen::VectorXd f(lt.cols());
-    fx(t, f);
-    out = lt * f;
-  };
-  const Eigen::PartialPivLU<Eigen::MatrixXd> lu(lambda);
-  z.x0 = lu.solve(x.x0);
-  z.v0 = lu.solve(x.v0);
-  return z;
-}
-
 TEST_P(SchemeSuite, Theorem43InvarianceUnderLinearChangeOfVariables) {
   constexpr std::size_t kN = 400;
   const Eigen::MatrixXd lambda{{1.0, 0.7}, {-0.4, 2.0}};  // invertible, not orthogonal
@@ -711,12 +541,12 @@ TEST_P(SchemeSuite, Theorem43InvarianceUnderLinearChangeOfVariables) {
   options.mirror = false;
   int ran = 0;
   for (const double alpha : {0.5, 0.75, 0.3}) {
-    const InitialValueProblem px = pendula(alpha, kN);
+    const InitialValueProblem px = test::forced_pendula(alpha, kN);
     const std::string label = "alpha " + std::to_string(alpha);
     if (skip_case(label, px)) continue;
     ++ran;
     const Solution sx = integrate(px, method(), options);
-    const Solution sz = integrate(transformed(px, lambda), method(), options);
+    const Solution sz = integrate(test::transformed_problem(px, lambda), method(), options);
     ASSERT_TRUE(sx.ok() && sz.ok()) << sx.message << sz.message;
     const double err_x = (sz.x * lambda.transpose() - sx.x).cwiseAbs().maxCoeff();
     const double err_v = (sz.v * lambda.transpose() - sx.v).cwiseAbs().maxCoeff();
@@ -732,8 +562,8 @@ TEST_P(SchemeSuite, Theorem43InvarianceUnderLinearChangeOfVariables) {
   if (ran == 0) GTEST_SKIP() << "no case within the scheme's domain";
 
   // Negative control: R left untransformed breaks the equivalence far above round-off.
-  const InitialValueProblem px = pendula(0.75, kN);
-  const InitialValueProblem pz = transformed(px, lambda, /*transform_damping=*/false);
+  const InitialValueProblem px = test::forced_pendula(0.75, kN);
+  const InitialValueProblem pz = test::transformed_problem(px, lambda, /*transform_damping=*/false);
   if (!outside_domain(px).empty() || !outside_domain(pz).empty()) return;
   const Solution sx = integrate(px, method(), options);
   const Solution sz = integrate(pz, method(), options);
@@ -750,8 +580,8 @@ TEST_P(SchemeSuite, Theorem43InvarianceUnderLinearChangeOfVariables) {
 // that h* is small against the oscillation (the bound only involves λ_max(M⁻¹R), h and 2α).
 InitialValueProblem stability_problem(double alpha, double h, std::size_t steps) {
   InitialValueProblem p;
-  p.model.mass = kPendulaMass;
-  p.model.damping = 100.0 * kPendulaDamping;
+  p.model.mass = test::pendula_mass();
+  p.model.damping = 100.0 * test::pendula_damping();
   p.model.alpha = alpha;
   p.model.convention = Convention::kCaputo;
   p.model.potential = make_quadratic_potential(Eigen::MatrixXd{{3.0, -1.0}, {-1.0, 2.0}});

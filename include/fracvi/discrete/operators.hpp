@@ -10,6 +10,10 @@
 //   Δ^α_− z_k  = h^{−α} Σ_{n=0}^{k}   α_n z_{k−n}   k = 0..N  (`DiscFracDerDef:1`)
 //   Δ^α_+ z_k  = h^{−α} Σ_{n=0}^{N−k} α_n z_{k+n}   k = 0..N  (`DiscFracDerDef:2`)
 //
+// The fractional differences take an optional generating function: the paper's Grünwald–Letnikov
+// α_n by default (bit for bit), or the weights ω_n = cq_weights(quadrature, α, ·) of another
+// convolution quadrature (CqScheme::kBdf2: the Δ^α_± of the scheme `fvi-bdf2`).
+//
 // These allocate their results: they serve action sums, residuals and tests, not the time-step
 // loop (the integrator keeps its own allocation-free history).
 #pragma once
@@ -93,17 +97,21 @@ inline Sequence delta_plus(const Sequence& z, double h) {
   return out;
 }
 
-/// Δ^α_− z_k = h^{−α} Σ_{n=0}^{k} α_n z_{k−n}, k = 0..N (`DiscFracDerDef:1`).
-inline Sequence frac_delta_minus(const Sequence& z, double h, double alpha) {
+/// Δ^α_− z_k = h^{−α} Σ_{n=0}^{k} α_n z_{k−n}, k = 0..N (`DiscFracDerDef:1`); with `quadrature`
+/// the weights are cq_weights(quadrature, α, N+1) (the default gives gl_weights exactly).
+inline Sequence frac_delta_minus(const Sequence& z, double h, double alpha,
+                                 CqScheme quadrature = CqScheme::kGrunwaldLetnikov) {
   internal::require_step(h, "frac_delta_minus");
-  const auto w = gl_weights(alpha, static_cast<std::size_t>(z.cols()));
+  const auto w = cq_weights(quadrature, alpha, static_cast<std::size_t>(z.cols()));
   return convolve_past(w, z) * std::pow(h, -alpha);
 }
 
-/// Δ^α_+ z_k = h^{−α} Σ_{n=0}^{N−k} α_n z_{k+n}, k = 0..N (`DiscFracDerDef:2`).
-inline Sequence frac_delta_plus(const Sequence& z, double h, double alpha) {
+/// Δ^α_+ z_k = h^{−α} Σ_{n=0}^{N−k} α_n z_{k+n}, k = 0..N (`DiscFracDerDef:2`); `quadrature` as
+/// for frac_delta_minus.
+inline Sequence frac_delta_plus(const Sequence& z, double h, double alpha,
+                                CqScheme quadrature = CqScheme::kGrunwaldLetnikov) {
   internal::require_step(h, "frac_delta_plus");
-  const auto w = gl_weights(alpha, static_cast<std::size_t>(z.cols()));
+  const auto w = cq_weights(quadrature, alpha, static_cast<std::size_t>(z.cols()));
   return convolve_future(w, z) * std::pow(h, -alpha);
 }
 

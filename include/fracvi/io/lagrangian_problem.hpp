@@ -35,9 +35,15 @@ namespace fracvi {
 /// refused (ValidationError).
 std::shared_ptr<const Lagrangian> make_lagrangian(const ProblemSpec& spec);
 
-/// The boundary value problem of a spec with `[boundary]` (ValidationError without it). Also
-/// refuses a Lagrangian whose Hessian in the velocities (ẋ, ẏ) is singular at the starting iterate
-/// (the straight lines between the end points): the discrete equations are then not solvable.
+/// The δ of Δ^α_± of `[method] scheme`'s boundary value form (SchemeInfo::variational_quadrature:
+/// GL for fvi-gl, BDF2 for fvi-bdf2). ValidationError naming method.scheme, its value and the
+/// rule when the scheme is unknown or has no boundary value form.
+CqScheme boundary_value_quadrature(const ProblemSpec& spec);
+
+/// The boundary value problem of a spec with `[boundary]` (ValidationError without it), its grid's
+/// quadrature that of `[method] scheme` (boundary_value_quadrature). Also refuses a Lagrangian
+/// whose Hessian in the velocities (ẋ, ẏ) is singular at the starting iterate (the straight lines
+/// between the end points): the discrete equations are then not solvable.
 BoundaryValueProblem make_boundary_value_problem(const ProblemSpec& spec);
 /// method.newton_max_iterations → max_iterations; the residual tolerance stays at its default.
 BvpOptions make_bvp_options(const ProblemSpec& spec);
@@ -62,9 +68,9 @@ void check_velocity_hessian(const Lagrangian& lagrangian, double t,
                             const Eigen::Ref<const Eigen::VectorXd>& z, const std::string& where,
                             bool include_y = true);
 
-/// summary.json of `fracvi bvp`: status, message, residual norm, floor and history, Newton and
-/// GMRES iterations, linear solver, action sum, wall time, the mirror diagnostic
-/// max_k |y_k − x_{N−k}|, the end states, and the resolved problem.
+/// summary.json of `fracvi bvp`: status, message, scheme, residual norm, floor and history, Newton
+/// and GMRES iterations, linear solver, action sum, wall time, the mirror diagnostic max_k |y_k −
+/// x_{N−k}|, the end states, and the resolved problem.
 nlohmann::json make_bvp_summary(const ProblemSpec& spec, const BvpSolution& solution);
 
 /// Writes trajectory.csv (header `t,x1..xd,y1..yd,residual_x,residual_y`: the max-norms of the

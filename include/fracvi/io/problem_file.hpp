@@ -22,6 +22,7 @@
 
 #include "fracvi/core/newton_options.hpp"
 #include "fracvi/schemes/options.hpp"
+#include "fracvi/schemes/registry.hpp"
 
 #include <Eigen/Core>
 #include <filesystem>
@@ -81,17 +82,21 @@ struct ProblemSpec {
   [[nodiscard]] double step() const { return (end - start) / static_cast<double>(steps); }
 
   // [method]
-  std::string scheme = "fvi-gl";
+  std::string scheme = std::string(Method().name());             ///< the registry's default scheme
   double newton_tolerance = NewtonOptions{}.relative_tolerance;  // one default: core/newton_options
   int newton_max_iterations = NewtonOptions{}.max_iterations;
-  std::string history = "auto";  ///< "auto", "direct" or "fast" (the damping memory sum)
+  /// "auto", "direct" or "fast" (the damping memory sum)
+  std::string history = std::string(to_string(IntegratorOptions{}.history));
   double history_tolerance =
       IntegratorOptions{}.history_tolerance;  ///< per-weight relative accuracy of the fast history
-  std::string linear_solver = "auto";  ///< "auto", "dense", "banded" or "sparse" (Newton matrix)
-  int threads = 0;                     ///< OpenMP threads over the degrees of freedom; 0 = all
+  /// "auto", "dense", "banded" or "sparse" (Newton matrix)
+  std::string linear_solver = std::string(to_string(IntegratorOptions{}.linear_solver));
+  int threads =
+      IntegratorOptions{}.threads;  ///< OpenMP threads over the degrees of freedom; 0 = all
 
   // [output]
-  long long every = 1;  ///< store every n-th step (IntegratorOptions::save_every) and the last
+  /// store every n-th step (IntegratorOptions::save_every) and the last
+  long long every = static_cast<long long>(IntegratorOptions{}.save_every);
 
   // [reference]
   std::vector<std::string> reference;  ///< exact x(t), empty or d formulas in t

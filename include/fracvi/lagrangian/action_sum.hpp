@@ -9,6 +9,12 @@
 // — the midpoint S x_k = (x_k + x_{k+1})/2 paired with the *backward* difference
 // Δ_−x_k = (x_k − x_{k−1})/h (Δ_−x_0 := 0) and the forward Δ_+y_k = −(y_{k+1} − y_k)/h.
 //
+// Δ^α_∓ are convolution quadratures h^{−α} Σ ω_n (·): ω_n = cq_weights(grid.quadrature, α, ·).
+// The default δ(ζ) = 1 − ζ gives the paper's Grünwald–Letnikov α_n (`AlphaDef`, scheme `fvi-gl`);
+// CqScheme::kBdf2 gives the action sum of `fvi-bdf2` (docs/theory/fvi_bdf2.md). Everything below
+// holds verbatim for any weights: the derivation uses only that Δ^α_− is lower and Δ^α_+ upper
+// triangular Toeplitz.
+//
 // Two action sums (docs/theory/discrete_euler_lagrange.md derives both and the difference):
 //
 //  * ActionSum::kPrinted, the paper's `DiscActSum`: A_d = h Σ_{k=0}^{N−1} L(k). Its exact
@@ -54,12 +60,16 @@ enum class ActionSum {
 /// "printed" / "extended".
 std::string_view to_string(ActionSum sum);
 
-/// The uniform grid of the discrete setting and the Lagrangian order α.
+/// The uniform grid of the discrete setting, the Lagrangian order α and the convolution
+/// quadrature of Δ^α_±.
 struct DiscreteGrid {
   double a = 0.0;
   double b = 1.0;
   Eigen::Index steps = 1;  ///< N ≥ 1
   double alpha = 0.5;      ///< the Lagrangian order α ∈ [0, 1]
+  /// The generating function δ of Δ^α_± (weights cq_weights(quadrature, α, ·)): the paper's
+  /// Grünwald–Letnikov weights by default; a scheme's own δ via SchemeInfo::variational_quadrature.
+  CqScheme quadrature = CqScheme::kGrunwaldLetnikov;
 
   [[nodiscard]] double step() const { return (b - a) / static_cast<double>(steps); }
   /// t_k = a + k h (also for half-integer k).
@@ -73,7 +83,7 @@ namespace internal {
 
 /// The phase points z_k, k = 0..N (column k of a 6d × (N+1) matrix); column N is the completion
 /// of kExtended. Linear in (x, y); templated so that a test can differentiate the whole action
-/// sum automatically. `weights` = gl_weights(α) of length ≥ N + 1.
+/// sum automatically. `weights` = cq_weights(quadrature, α) of length ≥ N + 1.
 template <class T>
 Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic> discrete_phase_points(
     const Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>& x,
@@ -116,7 +126,7 @@ T action_sum(const Functor& lagrangian, const Eigen::Matrix<T, Eigen::Dynamic, E
              ActionSum sum = ActionSum::kExtended) {
   const Eigen::Index n = x.cols() - 1;
   const double h = grid.step();
-  const auto w = gl_weights(grid.alpha, static_cast<std::size_t>(n + 1));
+  const auto w = cq_weights(grid.quadrature, grid.alpha, static_cast<std::size_t>(n + 1));
   const auto z = internal::discrete_phase_points<T>(x, y, h, grid.alpha, w);
   const Eigen::Index last = sum == ActionSum::kExtended ? n : n - 1;
   auto term = [&](Eigen::Index k) {

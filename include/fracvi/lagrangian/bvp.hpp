@@ -5,15 +5,15 @@
 //
 // Newton's method with the exact Jacobian. The residual is F = Cᵀ ∇L(A u) (src/lagrangian/
 // discrete_system.hpp): A maps the unknowns to the phase points z_k — a banded local part (S, Δ_±)
-// plus lower/upper triangular Toeplitz GL sums (Δ^α_∓) — and C is A with the fractional blocks
-// routed to the other equation. So J = Cᵀ diag(∇²L(z_k)) A exactly, and
+// plus lower/upper triangular Toeplitz CQ sums (Δ^α_∓, weights of grid.quadrature) — and C is A
+// with the fractional blocks routed to the other equation. So J = Cᵀ diag(∇²L(z_k)) A exactly, and
 //
-//  * J·v costs four GL sums (direct O(N²d) up to 256 points, real FFT O(N log N · d) above) and
+//  * J·v costs four CQ sums (direct O(N²d) up to 256 points, real FFT O(N log N · d) above) and
 //    one 6d × 6d product per point, with O(N d) memory: J is never formed for large N·d. (For a
 //    general L, J is dense: the x-equation at k sees every y_j through Δ^α_+y inside ∂L/∂D^α_+y.)
 //  * Linear solves: for n = 2(N−1)d ≤ dense_limit, J is assembled densely (O(N³d²) worst case)
 //    and LU-factored (O(n³)). Above that, restarted GMRES on the exact J·v, right-preconditioned by
-//    the band of J obtained by truncating every GL sum after `preconditioner_width` lags (its local
+//    the band of J obtained by truncating every CQ sum after `preconditioner_width` lags (its local
 //    part exact), assembled in O(N w² d²) and factored by SparseLU. GMRES stops at
 //    ‖r‖ ≤ max(krylov_tolerance·‖F‖, residual_tolerance/10) (inexact Newton).
 //  * Globalisation: backtracking on ‖F‖₂; the best iterate (smallest max |F|) is kept and returned
@@ -40,7 +40,7 @@ namespace fracvi {
 
 struct BoundaryValueProblem {
   std::shared_ptr<const Lagrangian> lagrangian;
-  DiscreteGrid grid;        ///< [a, b], N, α
+  DiscreteGrid grid;        ///< [a, b], N, α and the quadrature of Δ^α_±
   Eigen::VectorXd x_start;  ///< x_a = x(a) = y(b)
   Eigen::VectorXd x_end;    ///< x_b = x(b) = y(a)
   ActionSum sum = ActionSum::kExtended;
@@ -61,7 +61,7 @@ struct BvpOptions {
   int max_iterations = NewtonOptions{}.max_iterations;  ///< Newton iterations, ≥ 1 (one default)
   BvpLinearSolver linear_solver = BvpLinearSolver::kAuto;
   Eigen::Index dense_limit = 200;         ///< kAuto: unknowns 2(N−1)d up to this use dense LU
-  Eigen::Index preconditioner_width = 8;  ///< GL lags kept in the banded preconditioner, ≥ 1
+  Eigen::Index preconditioner_width = 8;  ///< CQ lags kept in the banded preconditioner, ≥ 1
   /// Relative residual of each GMRES solve; it also stops at the absolute 2-norm
   /// residual_tolerance/10 (inexact Newton) or when a restart cycle gains less than 10%.
   double krylov_tolerance = 1e-12;
@@ -119,7 +119,7 @@ class DiscreteElJacobian {
   [[nodiscard]] Eigen::VectorXd apply(const Eigen::VectorXd& v) const;
   /// J as a dense matrix (n × n).
   [[nodiscard]] Eigen::MatrixXd dense() const;
-  /// J with every GL sum truncated after `width` lags (exact when width ≥ N), sparse.
+  /// J with every CQ sum truncated after `width` lags (exact when width ≥ N), sparse.
   [[nodiscard]] Eigen::SparseMatrix<double> banded(Eigen::Index width) const;
 
  private:

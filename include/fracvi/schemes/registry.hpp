@@ -14,6 +14,7 @@
 #include <string_view>
 #include <vector>
 
+#include "fracvi/fractional/weights.hpp"
 #include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/schemes/options.hpp"
 #include "fracvi/schemes/stepper.hpp"
@@ -39,7 +40,11 @@ struct SchemeInfo {
   std::string_view order_rule;  ///< declared order in words, e.g. "1 (2 when R = 0)"
   int stages = 1;               ///< unknown states per step
   bool variational = true;      ///< derived from a (restricted) discrete variational principle
-  bool has_mirror = false;      ///< the backward mirror run exists (Solution::mirror_error)
+  /// The generating function δ of the scheme's Δ^α_± when the scheme is the restricted discrete
+  /// variational principle of the midpoint action sum (lagrangian/action_sum.hpp) with those
+  /// Δ^α_±, i.e. when it has a boundary value form (`fracvi bvp`); nullopt otherwise.
+  std::optional<CqScheme> variational_quadrature;
+  bool has_mirror = false;  ///< the backward mirror run exists (Solution::mirror_error)
   /// E_k + W_k − E_0 = 0 to round-off for quadratic, time-independent U (any R, α, f).
   bool exact_balance = false;
   std::string_view applies_to;      ///< where it applies, in words ("every model", "2α = 1")
@@ -99,6 +104,14 @@ Method fvi_bdf2();
 
 /// The registered scheme called `name`, or nullopt.
 std::optional<Method> parse_method(std::string_view name);
+
+/// "fvi-gl, fvi-bdf2": the registered schemes with a boundary value form (for messages).
+std::string boundary_value_scheme_names();
+
+/// The δ of Δ^α_± of `info`'s boundary value form (SchemeInfo::variational_quadrature). Throws
+/// ValidationError `method.scheme = "X" has no boundary value form (schemes with one: …)` when it
+/// has none.
+CqScheme boundary_value_quadrature(const SchemeInfo& info);
 
 /// Throws ValidationError when `method` does not apply to `problem` or `problem`'s step is beyond
 /// the method's stability bound. The message names the field (method.scheme or time.steps), the
