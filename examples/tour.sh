@@ -28,6 +28,12 @@ fracvi convergence examples/bagley_torvik_power.toml --steps 100,200,400,800,160
 # [/snippet]
 test -f fracvi-out/bagley-torvik-power-convergence/convergence.csv
 
+# [snippet: second-order]
+fracvi methods
+fracvi convergence examples/bagley_torvik_power_bdf2.toml --steps 100,200,400,800,1600
+# [/snippet]
+test -f fracvi-out/bagley-torvik-power-bdf2-convergence/convergence.csv
+
 # [snippet: convergence-fine]
 fracvi convergence examples/damped_pendulum.toml --steps 500,1000,2000,4000 --reference-steps 64000
 # [/snippet]
