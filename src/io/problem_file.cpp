@@ -269,10 +269,10 @@ void check_expression(const Reader& r, const std::string& key, const std::string
   }
 }
 
-// Symmetric to round-off, relative to the largest entry.
+// Symmetric to round-off (the rule of validate(): fracvi::roundoff_tolerance).
 bool is_symmetric(const Eigen::MatrixXd& m) {
-  const double scale = std::max(1.0, m.cwiseAbs().maxCoeff());
-  return (m - m.transpose()).cwiseAbs().maxCoeff() <= 1e-12 * scale;
+  return (m - m.transpose()).cwiseAbs().maxCoeff() <=
+         roundoff_tolerance(m.rows(), m.cwiseAbs().maxCoeff());
 }
 
 // The dense-storage checks (the sparse forms are diagonals checked entry by entry by the reader).
@@ -289,8 +289,7 @@ void check_dense_mass(const Reader& r, const Eigen::MatrixXd& m) {
 void check_dense_damping(const Reader& r, const Eigen::MatrixXd& m) {
   if (!is_symmetric(m)) r.fail("model.damping", "is not symmetric");
   const double lmin = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m).eigenvalues().minCoeff();
-  const double scale = std::max(1.0, m.cwiseAbs().maxCoeff());
-  if (lmin < -1e-12 * scale) {
+  if (lmin < -roundoff_tolerance(m.rows(), m.cwiseAbs().maxCoeff())) {
     r.fail("model.damping",
            "is not positive semidefinite (smallest eigenvalue " + format_value(lmin, 6) + ")");
   }

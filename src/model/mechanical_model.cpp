@@ -11,6 +11,10 @@
 
 namespace fracvi {
 
+double roundoff_tolerance(Eigen::Index dimension, double scale) {
+  return 100.0 * static_cast<double>(dimension) * std::numeric_limits<double>::epsilon() * scale;
+}
+
 std::optional<Convention> parse_convention(std::string_view name) {
   if (name == "riemann-liouville") return Convention::kRiemannLiouville;
   if (name == "caputo") return Convention::kCaputo;
@@ -47,11 +51,8 @@ std::string shape(const Matrix& m) {
   throw ValidationError(message);
 }
 
-// Round-off level below which asymmetry and negative eigenvalues are attributed to rounding
-// (matrices assembled as products, e.g. ΛᵀMΛ, are symmetric only to a few ulps × size).
 double roundoff_tolerance(const Eigen::MatrixXd& m) {
-  const double scale = m.size() == 0 ? 0.0 : m.cwiseAbs().maxCoeff();
-  return 100.0 * static_cast<double>(m.rows()) * std::numeric_limits<double>::epsilon() * scale;
+  return fracvi::roundoff_tolerance(m.rows(), m.size() == 0 ? 0.0 : m.cwiseAbs().maxCoeff());
 }
 
 void check_square_symmetric(const ModelMatrix& m, Eigen::Index d, const char* field) {
@@ -61,9 +62,7 @@ void check_square_symmetric(const ModelMatrix& m, Eigen::Index d, const char* fi
   }
   if (!m.all_finite()) fail(std::string(field) + " has a non-finite entry");
   const double asym = m.max_asymmetry();
-  const double tol =
-      100.0 * static_cast<double>(d) * std::numeric_limits<double>::epsilon() * m.max_abs();
-  if (asym > tol) {
+  if (asym > fracvi::roundoff_tolerance(d, m.max_abs())) {
     fail(std::string(field) + " is not symmetric (max |A - A^T| = " + fmt(asym) + ")");
   }
 }

@@ -83,6 +83,12 @@ struct InitialValueProblem {
   [[nodiscard]] double time(double k) const { return t0 + k * step_size(); }
 };
 
+/// The round-off level 100·d·ε·scale below which the asymmetry and the negative eigenvalues of a
+/// d × d matrix with largest entry `scale` are attributed to rounding (matrices assembled as
+/// products, e.g. ΛᵀMΛ, are symmetric only to a few ulps × size). One rule for validate() and the
+/// problem-file reader.
+double roundoff_tolerance(Eigen::Index dimension, double scale);
+
 /// Checks the model alone (sizes, finiteness, symmetry, definiteness, α range, potential
 /// dimension). Throws ValidationError.
 void validate(const MechanicalModel& model);
