@@ -1,9 +1,9 @@
 #include "fracvi/fractional/riemann_liouville.hpp"
+#include "fracvi/core/error.hpp"
 
 #include <algorithm>
 #include <boost/math/quadrature/tanh_sinh.hpp>
 #include <boost/math/special_functions/gamma.hpp>
-#include <charconv>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -16,9 +16,7 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Shortest round-trip text of a double, so messages show 1e-08 and not 0.000000.
 std::string format(double value) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof buffer, value);
-  return std::string(buffer, result.ptr);
+  return format_number(value);
 }
 
 [[noreturn]] void fail(const char* function, const char* name, double value,

@@ -183,7 +183,8 @@ struct Integrator::Impl {
     if (options.diagnostics) {
       // Step k is computed; if its diagnostics fail, the run ends with it as the last row.
       Status bad = Status::kSuccess;
-      std::array<char, 200> detail{};
+      std::array<char, 200> detail;  // written only on failure (no per-step clearing)
+      detail[0] = '\0';
       try {
         energy_k = energy(k);
         work_k = stepper->work();

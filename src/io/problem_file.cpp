@@ -69,11 +69,7 @@ std::string suggestion(std::string_view wrong, const std::vector<std::string>& c
 // The value as given: the shortest text that reads back as the same double (-0.2, not
 // -0.20000000000000001); `digits` significant digits otherwise.
 std::string format_value(double v, int digits = 0) {
-  if (digits == 0) {
-    char buf[32];
-    const auto r = std::to_chars(buf, buf + sizeof buf, v);
-    return std::string(buf, r.ptr);
-  }
+  if (digits == 0) return format_number(v);
   std::ostringstream os;
   os.precision(digits);
   os << v;

@@ -11,10 +11,6 @@
 
 namespace fracvi {
 
-bool is_local_order(double order) {
-  return order == 0.0 || order == 1.0 || order == 2.0;
-}
-
 DirectHistory::DirectHistory(ConvolutionQuadrature quadrature, Eigen::Index dimension,
                              std::size_t capacity)
     : quadrature_(quadrature), dimension_(dimension) {

@@ -4,7 +4,6 @@
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <array>
-#include <charconv>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -37,9 +36,7 @@ namespace {
 
 // Shortest representation that reads back to the same double ("-0.3", not "-0.29999999999999999").
 std::string fmt(double value) {
-  std::array<char, 64> buf{};
-  const auto result = std::to_chars(buf.data(), buf.data() + buf.size(), value);
-  return {buf.data(), result.ptr};
+  return format_number(value);
 }
 
 template <class Matrix>

@@ -119,8 +119,11 @@ TEST(History, ClearAndFactory) {
   EXPECT_EQ(frac->size(), 1u);
   frac->clear();
   EXPECT_EQ(frac->size(), 0u);
-  EXPECT_TRUE(is_local_order(0.0) && is_local_order(1.0) && is_local_order(2.0));
-  EXPECT_FALSE(is_local_order(0.5));
+  EXPECT_TRUE(grunwald_letnikov(0.0).is_local() && grunwald_letnikov(1.0).is_local() &&
+              grunwald_letnikov(2.0).is_local());
+  EXPECT_FALSE(grunwald_letnikov(0.5).is_local());
+  EXPECT_TRUE((ConvolutionQuadrature{CqScheme::kBdf2, 2.0}.is_local()));
+  EXPECT_FALSE((ConvolutionQuadrature{CqScheme::kTrapezoidal, 1.0}.is_local()));
   EXPECT_THROW(LocalHistory(0.5, 2), std::invalid_argument);
   EXPECT_THROW(DirectHistory(0.5, 0, 10), std::invalid_argument);
   EXPECT_THROW(DirectHistory(std::nan(""), 2, 10), std::invalid_argument);

@@ -144,7 +144,4 @@ inline std::unique_ptr<History> make_history(HistoryKind kind, double order, Eig
   return make_history(kind, grunwald_letnikov(order), dimension, capacity, tolerance);
 }
 
-/// True if `order` is 0, 1 or 2 (the weights of (1 − ζ)^order terminate).
-bool is_local_order(double order);
-
 }  // namespace fracvi
