@@ -1,7 +1,6 @@
 #include "fracvi/lagrangian/action_sum.hpp"
 
 #include <cmath>
-#include <unsupported/Eigen/FFT>
 
 #include "discrete_system.hpp"
 
@@ -38,49 +37,8 @@ DiscreteElSystem::DiscreteElSystem(Eigen::Index d, const DiscreteGrid& grid, Act
   h_ = grid.step();
   inv_h_ = 1.0 / h_;
   inv_h_alpha_ = std::pow(h_, -grid.alpha);
-  weights_ = cq_weights(grid.quadrature, grid.alpha, static_cast<std::size_t>(n_ + 1));
-  if (n_ + 1 > kFftThreshold) {
-    fft_size_ = 1;
-    while (fft_size_ < 2 * (n_ + 1)) fft_size_ *= 2;
-    std::vector<double> padded(static_cast<std::size_t>(fft_size_), 0.0);
-    for (Eigen::Index m = 0; m <= n_; ++m)
-      padded[static_cast<std::size_t>(m)] = inv_h_alpha_ * weights_[static_cast<std::size_t>(m)];
-    weight_spectrum_.resize(static_cast<std::size_t>(fft_size_ / 2 + 1));
-    Eigen::FFT<double> fft;
-    fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
-    fft.fwd(weight_spectrum_.data(), padded.data(), fft_size_);
-  }
-}
-
-void DiscreteElSystem::cq_sum(const double* s, Eigen::Index stride, double* out,
-                              Eigen::Index out_stride, bool reverse, bool accumulate) const {
-  const Eigen::Index n = n_;
-  // Element k of the (possibly reversed) series.
-  auto in = [&](Eigen::Index k) { return s[(reverse ? n - k : k) * stride]; };
-  auto put = [&](Eigen::Index k, double v) {
-    double& o = out[(reverse ? n - k : k) * out_stride];
-    o = accumulate ? o + v : v;
-  };
-  if (fft_size_ == 0) {
-    const double* w = weights_.data();
-    for (Eigen::Index k = 0; k <= n; ++k) {
-      double acc = 0.0;
-      for (Eigen::Index m = 0; m <= k; ++m) acc += w[m] * in(k - m);
-      put(k, inv_h_alpha_ * acc);
-    }
-    return;
-  }
-  // Linear convolution by a zero-padded real FFT (length ≥ 2(N+1): no wrap-around).
-  const auto size = static_cast<std::size_t>(fft_size_);
-  std::vector<double> buffer(size, 0.0);
-  for (Eigen::Index k = 0; k <= n; ++k) buffer[static_cast<std::size_t>(k)] = in(k);
-  std::vector<std::complex<double>> spectrum(size / 2 + 1);
-  Eigen::FFT<double> fft;
-  fft.SetFlag(Eigen::FFT<double>::HalfSpectrum);
-  fft.fwd(spectrum.data(), buffer.data(), fft_size_);
-  for (std::size_t q = 0; q < spectrum.size(); ++q) spectrum[q] *= weight_spectrum_[q];
-  fft.inv(buffer.data(), spectrum.data(), fft_size_);
-  for (Eigen::Index k = 0; k <= n; ++k) put(k, buffer[static_cast<std::size_t>(k)]);
+  memory_ = SeriesConvolution(
+      cq_weights(grid.quadrature, grid.alpha, static_cast<std::size_t>(n_ + 1)), inv_h_alpha_);
 }
 
 void DiscreteElSystem::phase_points(const Sequence& x, const Sequence& y,
@@ -108,8 +66,8 @@ void DiscreteElSystem::phase_points(const Sequence& x, const Sequence& y,
   // Δ^α_−x_k = h^{−α} Σ_{m=0}^{k} ω_m x_{k−m},  Δ^α_+y_k = h^{−α} Σ_{m=0}^{N−k} ω_m y_{k+m}.
   const Eigen::Index zs = z.rows();
   for (Eigen::Index i = 0; i < d; ++i) {
-    cq_sum(x.data() + i, d, z.data() + 4 * d + i, zs, false, false);
-    cq_sum(y.data() + i, d, z.data() + 5 * d + i, zs, true, false);
+    cq_sum(x.data() + i, d, z.data() + 4 * d + i, zs, false);
+    cq_sum(y.data() + i, d, z.data() + 5 * d + i, zs, true);
   }
 }
 
@@ -137,8 +95,8 @@ void DiscreteElSystem::assemble(const Eigen::MatrixXd& g, Sequence& x_eq, Sequen
   if (!extended) tail.col(n).setZero();
   Eigen::MatrixXd memory_x(d, n + 1), memory_y(d, n + 1);
   for (Eigen::Index i = 0; i < d; ++i) {
-    cq_sum(tail.data() + d + i, 2 * d, memory_x.data() + i, d, false, false);
-    cq_sum(tail.data() + i, 2 * d, memory_y.data() + i, d, true, false);
+    cq_sum(tail.data() + d + i, 2 * d, memory_x.data() + i, d, false);
+    cq_sum(tail.data() + i, 2 * d, memory_y.data() + i, d, true);
   }
   x_eq.middleCols(1, n - 1) += memory_x.middleCols(1, n - 1);
   y_eq.middleCols(1, n - 1) += memory_y.middleCols(1, n - 1);

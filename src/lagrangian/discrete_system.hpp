@@ -14,15 +14,12 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <complex>
 #include <vector>
 
+#include "fracvi/fractional/convolution.hpp"
 #include "fracvi/lagrangian/action_sum.hpp"
 
 namespace fracvi::internal {
-
-/// Sequences with more points than this use FFT convolutions.
-inline constexpr Eigen::Index kFftThreshold = 256;
 
 class DiscreteElSystem {
  public:
@@ -40,7 +37,7 @@ class DiscreteElSystem {
   [[nodiscard]] double point_time(Eigen::Index k) const {
     return k == n_ ? grid_.b : grid_.time(static_cast<double>(k) + 0.5);
   }
-  [[nodiscard]] const std::vector<double>& weights() const { return weights_; }
+  [[nodiscard]] const std::vector<double>& weights() const { return memory_.weights(); }
 
   /// Z (6d × (N+1)) from x, y (d × (N+1)). Linear: also maps perturbations to perturbations.
   void phase_points(const Sequence& x, const Sequence& y, Eigen::MatrixXd& z) const;
@@ -51,16 +48,16 @@ class DiscreteElSystem {
   /// out_k = h^{−α} Σ_{m=0}^{k} ω_m s_k−m, k = 0..N, for a series s of length N+1 (`reverse`:
   /// s and out indexed backwards, i.e. the anti-causal Σ_{m=0}^{N−k} ω_m s_{k+m}); ω = weights().
   void cq_sum(const double* s, Eigen::Index stride, double* out, Eigen::Index out_stride,
-              bool reverse, bool accumulate) const;
+              bool reverse) const {
+    memory_.apply(s, stride, out, out_stride, reverse);
+  }
 
  private:
   Eigen::Index d_, n_;
   DiscreteGrid grid_;
   ActionSum sum_;
   double h_, inv_h_, inv_h_alpha_;
-  std::vector<double> weights_;                        // ω_0 … ω_N (GL: α_0 … α_N)
-  Eigen::Index fft_size_ = 0;                          // 0: direct sums
-  std::vector<std::complex<double>> weight_spectrum_;  // half spectrum of h^{−α}·ω, padded
+  SeriesConvolution memory_;  // h^{−α} · ω_0 … ω_N (GL: α_0 … α_N), direct or FFT
 };
 
 }  // namespace fracvi::internal

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "fracvi/fractional/convolution.hpp"
 #include "fracvi/fractional/weights.hpp"
 
 namespace fracvi {
@@ -40,9 +41,12 @@ void DirectHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
   const std::size_t k = size_ - 1;
   const auto d = static_cast<std::size_t>(dimension_);
   out.setZero();
-  for (std::size_t j = 0; j <= k; ++j) {
-    out += weights_[k - j] * Eigen::Map<const Eigen::VectorXd>(values_.data() + j * d, dimension_);
-  }
+  accumulate_causal(
+      weights_, k,
+      [&](std::size_t j) {
+        return Eigen::Map<const Eigen::VectorXd>(values_.data() + j * d, dimension_);
+      },
+      out);
 }
 
 LocalHistory::LocalHistory(ConvolutionQuadrature quadrature, Eigen::Index dimension)
@@ -83,9 +87,9 @@ void LocalHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
   const auto w = static_cast<std::size_t>(width_);
   const std::size_t first = k + 1 >= w ? k + 1 - w : 0;
   out.setZero();
-  for (std::size_t j = first; j <= k; ++j) {
-    out += weights_[k - j] * window_.col(static_cast<Eigen::Index>(j % w));
-  }
+  accumulate_causal(
+      weights_, k, [&](std::size_t j) { return window_.col(static_cast<Eigen::Index>(j % w)); },
+      out, first);
 }
 
 std::optional<HistoryKind> parse_history_kind(std::string_view name) {

@@ -23,7 +23,9 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
+#include "fracvi/fractional/convolution.hpp"
 #include "fracvi/fractional/weights.hpp"
 
 namespace fracvi {
@@ -46,23 +48,29 @@ inline void require_weights(std::span<const double> w, Eigen::Index columns, con
 }
 }  // namespace internal
 
+namespace internal {
+/// Row by row: scale · (w ⋆ z) (causal) or its mirror (anti-causal, `reverse`), direct or by FFT
+/// (SeriesConvolution, the one convolution of the library).
+inline Sequence convolve_rows(std::span<const double> w, const Sequence& z, double scale,
+                              bool reverse, const char* op) {
+  require_weights(w, z.cols(), op);
+  const SeriesConvolution convolution(
+      std::vector<double>(w.begin(), w.begin() + static_cast<std::ptrdiff_t>(z.cols())), scale);
+  Sequence out(z.rows(), z.cols());
+  for (Eigen::Index i = 0; i < z.rows(); ++i)
+    convolution.apply(z.data() + i, z.rows(), out.data() + i, out.rows(), reverse);
+  return out;
+}
+}  // namespace internal
+
 /// Σ_{m=0}^{k} w_m z_{k−m} for k = 0..N (the causal, "retarded" convolution).
 inline Sequence convolve_past(std::span<const double> w, const Sequence& z) {
-  internal::require_weights(w, z.cols(), "convolve_past");
-  Sequence out = Sequence::Zero(z.rows(), z.cols());
-  for (Eigen::Index k = 0; k < z.cols(); ++k)
-    for (Eigen::Index m = 0; m <= k; ++m) out.col(k) += w[m] * z.col(k - m);
-  return out;
+  return internal::convolve_rows(w, z, 1.0, false, "convolve_past");
 }
 
 /// Σ_{m=0}^{N−k} w_m z_{k+m} for k = 0..N (the anti-causal, "advanced" convolution).
 inline Sequence convolve_future(std::span<const double> w, const Sequence& z) {
-  internal::require_weights(w, z.cols(), "convolve_future");
-  const Eigen::Index n = z.cols() - 1;
-  Sequence out = Sequence::Zero(z.rows(), z.cols());
-  for (Eigen::Index k = 0; k <= n; ++k)
-    for (Eigen::Index m = 0; m <= n - k; ++m) out.col(k) += w[m] * z.col(k + m);
-  return out;
+  return internal::convolve_rows(w, z, 1.0, true, "convolve_future");
 }
 
 /// S z_k = (z_k + z_{k+1})/2, k = 0..N−1 (`MidpointRule`); column N is zero.
@@ -103,7 +111,7 @@ inline Sequence frac_delta_minus(const Sequence& z, double h, double alpha,
                                  CqScheme quadrature = CqScheme::kGrunwaldLetnikov) {
   internal::require_step(h, "frac_delta_minus");
   const auto w = cq_weights(quadrature, alpha, static_cast<std::size_t>(z.cols()));
-  return convolve_past(w, z) * std::pow(h, -alpha);
+  return internal::convolve_rows(w, z, std::pow(h, -alpha), false, "frac_delta_minus");
 }
 
 /// Δ^α_+ z_k = h^{−α} Σ_{n=0}^{N−k} α_n z_{k+n}, k = 0..N (`DiscFracDerDef:2`); `quadrature` as
@@ -112,7 +120,7 @@ inline Sequence frac_delta_plus(const Sequence& z, double h, double alpha,
                                 CqScheme quadrature = CqScheme::kGrunwaldLetnikov) {
   internal::require_step(h, "frac_delta_plus");
   const auto w = cq_weights(quadrature, alpha, static_cast<std::size_t>(z.cols()));
-  return convolve_future(w, z) * std::pow(h, -alpha);
+  return internal::convolve_rows(w, z, std::pow(h, -alpha), true, "frac_delta_plus");
 }
 
 }  // namespace fracvi

@@ -45,6 +45,7 @@
 #include <vector>
 
 #include "fracvi/discrete/operators.hpp"
+#include "fracvi/fractional/convolution.hpp"
 #include "fracvi/fractional/weights.hpp"
 #include "fracvi/lagrangian/lagrangian.hpp"
 #include "fracvi/lagrangian/phase_point.hpp"
@@ -101,9 +102,13 @@ Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic> discrete_phase_points(
       z(d + i, k) = last ? y(i, k) : T(T(0.5) * (y(i, k) + y(i, k + 1)));
       z(2 * d + i, k) = k == 0 ? T(T(0.0) * x(i, k)) : T((x(i, k) - x(i, k - 1)) * T(inv_h));
       z(3 * d + i, k) = last ? T(T(0.0) * y(i, k)) : T((y(i, k) - y(i, k + 1)) * T(inv_h));
-      T sx = T(weights[0]) * x(i, k), sy = T(weights[0]) * y(i, k);
-      for (Eigen::Index m = 1; m <= k; ++m) sx += T(weights[m]) * x(i, k - m);
-      for (Eigen::Index m = 1; m <= n - k; ++m) sy += T(weights[m]) * y(i, k + m);
+      // Δ^α_−x_k and Δ^α_+y_k: the causal sum, and the causal sum of the reversed y.
+      T sx = T(0.0) * x(i, k), sy = T(0.0) * y(i, k);
+      const auto ku = static_cast<std::size_t>(k), nu = static_cast<std::size_t>(n);
+      accumulate_causal(
+          weights, ku, [&](std::size_t j) { return x(i, Eigen::Index(j)); }, sx);
+      accumulate_causal(
+          weights, nu - ku, [&](std::size_t j) { return y(i, Eigen::Index(nu - j)); }, sy);
       z(4 * d + i, k) = sx * T(inv_h_alpha);
       z(5 * d + i, k) = sy * T(inv_h_alpha);
     }
