@@ -14,8 +14,9 @@ Command add_methods_command(CLI::App& parent) {
   CLI::App* app = parent.add_subcommand(
       "methods",
       "List the time-stepping schemes (the method registry): name, declared order, stages, "
-      "whether it is variational, has a mirror run and an exact energy balance, where it applies "
-      "and its stability bound. Choose one with [method] scheme in a problem file or --set "
+      "whether it is variational, has a mirror run, an exact energy balance and a fast history, "
+      "where it applies and its stability bound. Choose one with [method] scheme in a problem file "
+      "or --set "
       "method.scheme=NAME.");
   app->add_flag("--json", *json, "print the registry as a JSON array (one object per scheme)");
   auto run = [json]() {
@@ -29,6 +30,7 @@ Command add_methods_command(CLI::App& parent) {
                        {"variational", r.variational},
                        {"mirror", r.mirror},
                        {"exact_balance", r.exact_balance},
+                       {"fast_history", r.fast_history},
                        {"applies_to", r.applies_to},
                        {"stability", r.stability},
                        {"summary", r.summary},
@@ -38,12 +40,14 @@ Command add_methods_command(CLI::App& parent) {
       return kExitSuccess;
     }
     auto yes = [](bool b) { return b ? "yes" : "no"; };
-    std::printf("%-10s %-18s %-6s %-11s %-6s %-13s %-12s %s\n", "scheme", "order", "stages",
-                "variational", "mirror", "exact balance", "applies to", "stability bound");
+    std::printf("%-12s %-18s %-6s %-11s %-6s %-13s %-12s %-15s %s\n", "scheme", "order", "stages",
+                "variational", "mirror", "exact balance", "fast history", "applies to",
+                "stability bound");
     for (const SchemeRow& r : rows) {
-      std::printf("%-10s %-18s %-6d %-11s %-6s %-13s %-12s %s\n", r.name.c_str(), r.order.c_str(),
-                  r.stages, yes(r.variational), yes(r.mirror), yes(r.exact_balance),
-                  r.applies_to.c_str(), r.stability.c_str());
+      std::printf("%-12s %-18s %-6d %-11s %-6s %-13s %-12s %-15s %s\n", r.name.c_str(),
+                  r.order.c_str(), r.stages, yes(r.variational), yes(r.mirror),
+                  yes(r.exact_balance), yes(r.fast_history), r.applies_to.c_str(),
+                  r.stability.c_str());
     }
     std::printf("\n");
     for (const SchemeRow& r : rows) {

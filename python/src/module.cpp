@@ -556,6 +556,7 @@ void bind(py::module_& m) {
       row["variational"] = r.variational;
       row["mirror"] = r.mirror;
       row["exact_balance"] = r.exact_balance;
+      row["fast_history"] = r.fast_history;
       row["applies_to"] = r.applies_to;
       row["stability"] = r.stability;
       row["summary"] = r.summary;

@@ -1,5 +1,6 @@
 #include "fracvi/fractional/convolution_quadrature.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -8,8 +9,18 @@
 
 namespace fracvi {
 
+namespace {
+
+std::vector<double> drop_first(std::vector<double> w, std::size_t lag) {
+  w.erase(w.begin(), w.begin() + static_cast<std::ptrdiff_t>(std::min(lag, w.size())));
+  return w;
+}
+
+}  // namespace
+
 std::vector<double> ConvolutionQuadrature::weights(std::size_t count) const {
-  return cq_weights(scheme, order, count);
+  if (lag == 0) return cq_weights(scheme, order, count);
+  return drop_first(cq_weights(scheme, order, count + lag), lag);
 }
 
 bool ConvolutionQuadrature::is_local() const {
@@ -31,10 +42,11 @@ std::vector<double> ConvolutionQuadrature::local_weights() const {
       for (std::size_t j = 0; j < delta.size(); ++j) next[i + j] += power[i] * delta[j];
     power = std::move(next);
   }
-  return power;
+  return drop_first(std::move(power), lag);
 }
 
 double ConvolutionQuadrature::symbol_at_minus_one() const {
+  // |ζ^lag| = 1 on the unit circle: the lag does not change the magnitude.
   switch (scheme) {
     case CqScheme::kGrunwaldLetnikov: return std::pow(2.0, order);
     case CqScheme::kBdf2: return std::pow(4.0, order);
@@ -45,7 +57,9 @@ double ConvolutionQuadrature::symbol_at_minus_one() const {
 }
 
 std::string ConvolutionQuadrature::describe() const {
-  return std::string(to_string(scheme)) + " CQ of order " + format_number(order);
+  std::string text = std::string(to_string(scheme)) + " CQ of order " + format_number(order);
+  if (lag != 0) text += " from lag " + std::to_string(lag);
+  return text;
 }
 
 }  // namespace fracvi

@@ -51,7 +51,7 @@ InitialValueProblem validated(InitialValueProblem problem, const Method& method,
                               const IntegratorOptions& options) {
   validate(problem);
   validate(options);
-  check_applicable(problem, method);
+  check_applicable(problem, method, options);
   return problem;
 }
 

@@ -32,7 +32,7 @@ PreparedRun prepare_run(ProblemSpec spec) {
     run.method = *method;
     validate(run.problem);
     validate(run.options);
-    check_applicable(run.problem, run.method);
+    check_applicable(run.problem, run.method, run.options);
     run.spec = std::move(spec);
     return run;
   } catch (const ProblemFileError&) {

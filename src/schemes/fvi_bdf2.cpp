@@ -19,6 +19,8 @@ const SchemeInfo kFviBdf2{
     .variational_quadrature = CqScheme::kBdf2,
     .has_mirror = true,
     .exact_balance = true,
+    .fast_history = true,
+    .momentum_quadrature = CqScheme::kBdf2,
     .applies_to = "every model",
     .stability_rule = "lambda_max(M^-1 R) h^(2-2alpha) 4^(2alpha-1) < 1",
     .declared_order = [](const MechanicalModel&) { return 2; },

@@ -18,6 +18,8 @@ const SchemeInfo kFviGl{
     .variational_quadrature = CqScheme::kGrunwaldLetnikov,
     .has_mirror = true,
     .exact_balance = true,
+    .fast_history = true,
+    .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
     .applies_to = "every model",
     .stability_rule = "lambda_max(M^-1 R) (h/2)^(2-2alpha) < 1",
     // The GL sum (for α = 1/2 the backward difference of Lemma 5.3) is first order; without

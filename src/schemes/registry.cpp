@@ -12,9 +12,10 @@ namespace fracvi {
 namespace {
 
 // One line per scheme.
-constexpr std::array<const SchemeInfo*, 2> kSchemes{
+constexpr std::array<const SchemeInfo*, 3> kSchemes{
     &internal::kFviGl,
     &internal::kFviBdf2,
+    &internal::kFviMidpoint,
 };
 
 }  // namespace
@@ -44,7 +45,7 @@ std::vector<SchemeRow> scheme_table() {
     rows.push_back({std::string(info->name), std::string(info->order_rule),
                     std::string(info->applies_to), std::string(info->stability_rule),
                     std::string(info->summary), std::string(info->reference), info->stages,
-                    info->variational, info->has_mirror, info->exact_balance});
+                    info->variational, info->has_mirror, info->exact_balance, info->fast_history});
   }
   return rows;
 }
@@ -80,11 +81,18 @@ CqScheme boundary_value_quadrature(const SchemeInfo& info) {
       "\" has no boundary value form (schemes with one: " + boundary_value_scheme_names() + ")");
 }
 
-void check_applicable(const InitialValueProblem& problem, const Method& method) {
+void check_applicable(const InitialValueProblem& problem, const Method& method,
+                      const IntegratorOptions& options) {
   const SchemeInfo& info = method.info();
   if (const std::string rule = info.applicability(problem); !rule.empty()) {
     throw ValidationError("method.scheme = \"" + std::string(info.name) +
                           "\" does not apply to this problem: " + rule);
+  }
+  if (options.history == HistoryKind::kFast && !info.fast_history && !problem.model.is_undamped()) {
+    throw ValidationError("method.history = \"fast\" is not available for method.scheme = \"" +
+                          std::string(info.name) +
+                          "\" (no sum-of-exponentials fit of its memory weights yet): use \"auto\" "
+                          "(the direct sum for this scheme) or \"direct\"");
   }
   const StabilityBound bound = info.stability(problem);
   if (bound.stable) return;

@@ -5,7 +5,8 @@
 
 namespace fracvi::internal {
 
-extern const SchemeInfo kFviGl;    // fvi_gl.cpp
-extern const SchemeInfo kFviBdf2;  // fvi_bdf2.cpp
+extern const SchemeInfo kFviGl;        // fvi_gl.cpp
+extern const SchemeInfo kFviBdf2;      // fvi_bdf2.cpp
+extern const SchemeInfo kFviMidpoint;  // fvi_midpoint.cpp
 
 }  // namespace fracvi::internal

@@ -269,8 +269,8 @@ class Methods(unittest.TestCase):
         names = [row["name"] for row in rows]
         self.assertEqual(names[:2], ["fvi-gl", "fvi-bdf2"])
         for row in rows:
-            for key in ("order", "stages", "variational", "mirror", "exact_balance", "applies_to",
-                        "stability", "summary", "reference"):
+            for key in ("order", "stages", "variational", "mirror", "exact_balance", "fast_history",
+                        "applies_to", "stability", "summary", "reference"):
                 self.assertIn(key, row)
         r = run("methods")
         self.assertEqual(r.returncode, 0, r.stderr)
@@ -288,7 +288,8 @@ class Methods(unittest.TestCase):
             table.append(cells)
         expected = [[f"`{row['name']}`", row["order"], str(row["stages"]),
                      "yes" if row["variational"] else "no", "yes" if row["mirror"] else "no",
-                     "yes" if row["exact_balance"] else "no", row["applies_to"],
+                     "yes" if row["exact_balance"] else "no",
+                     "yes" if row["fast_history"] else "no", row["applies_to"],
                      f"`{row['stability']}`"] for row in self.registry()]
         self.assertEqual(table, expected, "docs/schemes.md is out of date: regenerate its table "
                                           "from `fracvi methods --json`")

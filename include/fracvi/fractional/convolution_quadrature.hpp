@@ -21,15 +21,20 @@ namespace fracvi {
 struct ConvolutionQuadrature {
   CqScheme scheme = CqScheme::kGrunwaldLetnikov;
   double order = 1.0;  ///< β (the damping sum of the mechanical schemes uses β = 2α)
+  /// The first `lag` weights are left out: weights(count)[m] = ω_{m+lag}. A scheme whose current
+  /// weight ω_0 acts on the unknown (and sits in Newton's matrix) keeps the known values in a
+  /// history with lag 1.
+  std::size_t lag = 0;
 
-  /// ω_0 … ω_{count−1} (cq_weights()).
+  /// ω_lag … ω_{lag+count−1} (cq_weights()).
   [[nodiscard]] std::vector<double> weights(std::size_t count) const;
 
   /// True when the weights terminate: δ is a polynomial (GL, BDF2) and β ∈ {0, 1, 2}. The
   /// history then keeps only the last local_weights().size() values.
   [[nodiscard]] bool is_local() const;
   /// The nonzero weights of a local quadrature, exactly (the coefficients of the polynomial δ^β,
-  /// all dyadic rationals: GL (1, −1), (1, −2, 1); BDF2 (3/2, −2, 1/2), (9/4, −6, 11/2, −2, 1/4)).
+  /// all dyadic rationals: GL (1, −1), (1, −2, 1); BDF2 (3/2, −2, 1/2), (9/4, −6, 11/2, −2, 1/4);
+  /// without the first `lag` of them; empty when the lag removes every nonzero weight).
   /// Throws std::invalid_argument unless is_local().
   [[nodiscard]] std::vector<double> local_weights() const;
 
@@ -40,7 +45,7 @@ struct ConvolutionQuadrature {
 
   [[nodiscard]] int stages() const { return 1; }
 
-  /// e.g. "bdf2 CQ of order 1.5".
+  /// e.g. "bdf2 CQ of order 1.5", "gl CQ of order 0.6 from lag 1".
   [[nodiscard]] std::string describe() const;
 
   friend bool operator==(const ConvolutionQuadrature&, const ConvolutionQuadrature&) = default;

@@ -47,6 +47,15 @@ struct SchemeInfo {
   bool has_mirror = false;  ///< the backward mirror run exists (Solution::mirror_error)
   /// E_k + W_k − E_0 = 0 to round-off for quadratic, time-independent U (any R, α, f).
   bool exact_balance = false;
+  /// method.history = "fast" is available (a sum-of-exponentials memory, independent of N);
+  /// "auto" uses it where it pays. Without it the memory is summed directly (O(N) per step) and
+  /// "fast" is refused before step 1.
+  bool fast_history = false;
+  /// The convolution quadrature (of order 2α) of the damping force in the scheme's momenta p_k.
+  /// Its weights ω carry round-off in the positions into the velocities:
+  /// ‖δp_k‖ ≤ (h/2) ‖R‖ h^{−2α} Σ_{m≤k} |ω_m| max_j ‖δx_j‖ (the method-parameterised tests use this
+  /// bound; Σ|ω| ≤ 2^{2α} for Grünwald–Letnikov, but grows like k^{2α} for the trapezoidal rule).
+  CqScheme momentum_quadrature = CqScheme::kGrunwaldLetnikov;
   std::string_view applies_to;      ///< where it applies, in words ("every model", "2α = 1")
   std::string_view stability_rule;  ///< the stability bound in words
   /// The order the scheme reaches on smooth solutions of this model.
@@ -70,12 +79,12 @@ std::string scheme_names();
 
 /// The registry as text columns, one entry per scheme with the keys name, order, stages,
 /// variational, mirror, exact_balance, applies_to, stability, summary, reference (what
-/// `fracvi methods --json` prints and Python's fracvi.methods() returns; values are strings,
-/// integers or booleans).
+/// `fracvi methods --json` prints and Python's fracvi.methods() returns, plus fast_history; values
+/// are strings, integers or booleans).
 struct SchemeRow {
   std::string name, order, applies_to, stability, summary, reference;
   int stages = 1;
-  bool variational = true, mirror = false, exact_balance = false;
+  bool variational = true, mirror = false, exact_balance = false, fast_history = false;
 };
 std::vector<SchemeRow> scheme_table();
 
@@ -113,10 +122,12 @@ std::string boundary_value_scheme_names();
 /// has none.
 CqScheme boundary_value_quadrature(const SchemeInfo& info);
 
-/// Throws ValidationError when `method` does not apply to `problem` or `problem`'s step is beyond
-/// the method's stability bound. The message names the field (method.scheme or time.steps), the
-/// value and the rule, and for the stability bound the largest stable step and the smallest
-/// stable number of steps.
-void check_applicable(const InitialValueProblem& problem, const Method& method);
+/// Throws ValidationError when `method` does not apply to `problem`, `problem`'s step is beyond
+/// the method's stability bound, or `options` ask for a fast history the method does not have.
+/// The message names the field (method.scheme, time.steps or method.history), the value and the
+/// rule, and for the stability bound the largest stable step and the smallest stable number of
+/// steps.
+void check_applicable(const InitialValueProblem& problem, const Method& method,
+                      const IntegratorOptions& options = {});
 
 }  // namespace fracvi
