@@ -52,7 +52,7 @@ struct ButcherTableau {
 
 /// The s-stage Lobatto IIIC method, s = 2, 3, 4 (orders 2s − 2 = 2, 4, 6; stiffly accurate,
 /// L-stable, algebraically stable). Coefficients as in Hairer & Wanner, Solving Ordinary
-/// Differential Equations II, 2nd ed., Sect. IV.3 (Chipman 1971): c are the Lobatto points,
+/// Differential Equations II, 2nd ed., Sect. IV.5 (Chipman 1971): c are the Lobatto points,
 /// a_{i1} = b_1, and A satisfies C(s − 1). Throws std::invalid_argument for other s.
 const ButcherTableau& lobatto_iiic(int stages);
 
@@ -101,10 +101,10 @@ struct RungeKuttaCq {
   [[nodiscard]] Eigen::MatrixXd delta(double zeta) const;
 
   /// W_0 … W_{count−1}. Integer orders exactly (up to the rounding of A^{−1}); otherwise every
-  /// block to about 1e-14 relative (the measured table is in docs/theory/rkcq_weights.md). Cost
-  /// O(count · J · s²) with J ≈ 300–500 quadrature nodes (≈ 0.1 s per 10^4 blocks).
+  /// entry to a few ulps (measured ≤ 5.3e-15 relative for lags up to 10^7 against 50-digit
+  /// references, docs/theory/rkcq_weights.md). Cost ≈ 0.04 s per 10^4 blocks, 0.4 s per 10^5.
   [[nodiscard]] BlockWeights weights(std::size_t count) const;
-  /// W_lag alone (any lag; cost independent of the lag, about J s×s solves).
+  /// W_lag alone (any lag; cost independent of the lag: ≈ 10^{−4} s).
   [[nodiscard]] Eigen::MatrixXd weight(std::size_t lag) const;
 
   /// True for integer orders (0, 1, 2): the weights terminate after order + 1 blocks.
