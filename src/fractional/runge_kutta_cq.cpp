@@ -169,7 +169,7 @@ class NodeFactory {
   [[nodiscard]] std::vector<Node> nodes(std::size_t j_lo, std::size_t j_hi, double tau) const {
     // Lower end: ∫_0^{z_min} (|sin πβ|/π) z^β dz ≤ tau |W_{j_hi}|.
     const double log_z_min =
-        (std::log(tau * tgamma_two_plus_beta() * tableau_.b.minCoeff())) / (1.0 + beta_) -
+        std::log(tau * std::tgamma(2.0 + beta_) * tableau_.b.minCoeff()) / (1.0 + beta_) -
         std::log(static_cast<double>(j_hi));
     const int k_lo = static_cast<int>(std::floor(log_z_min / h_));
     const double threshold = std::log(tau) + log_size(j_lo) + std::log(h_);
@@ -190,8 +190,6 @@ class NodeFactory {
   [[nodiscard]] double step() const { return h_; }
 
  private:
-  [[nodiscard]] double tgamma_two_plus_beta() const { return std::tgamma(2.0 + beta_); }
-
   const ButcherTableau& tableau_;
   int stages_;
   double beta_;
@@ -248,7 +246,6 @@ std::pair<Eigen::MatrixXd, Eigen::MatrixXd> first_two(const RungeKuttaCq& cq) {
 
 // Exact weights of an integer order, lags 0 … count − 1.
 void integer_weights(const RungeKuttaCq& cq, BlockWeights& out) {
-  const int s = cq.stages;
   const Eigen::MatrixXd d0 = cq.delta(0.0);
   const Eigen::MatrixXd d1 = cq.delta(1.0) - d0;  // exactly −(1/b_1) e_1 e_sᵀ
   for (std::size_t j = 0; j < out.size(); ++j) out[j].setZero();
@@ -263,7 +260,6 @@ void integer_weights(const RungeKuttaCq& cq, BlockWeights& out) {
     if (out.size() > 1) out[1] = d0 * d1 + d1 * d0;
     if (out.size() > 2) out[2] = d1 * d1;  // zero: e_sᵀe_1 = 0
   }
-  (void)s;
 }
 
 double weight_step(double beta) {
