@@ -17,6 +17,7 @@ packages=(
   clang-format                            # formatting check
   python3 python3-numpy python3-matplotlib python3-pytest  # plots, CLI and Python tests
   python3-scipy                           # Python: sparse mass/damping as scipy.sparse matrices
+  python3-mpmath                          # 50-digit reference RKCQ weights (tests/fractional/rkcq_reference.py)
   python3-dev pybind11-dev                # Python module (pybind11-dev does not pull Python.h)
 )
 
