@@ -277,3 +277,5 @@ std::string unknown_field_message(std::string_view path) {
 }
 
 }  // namespace fracvi
+
+#undef FRACVI_BINDING
