@@ -12,6 +12,7 @@
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/io/lagrangian_problem.hpp"
 #include "fracvi/io/problem_file.hpp"
+#include "fracvi/io/run.hpp"
 
 namespace fracvi::cli {
 
@@ -51,13 +52,16 @@ Command add_bvp_command(CLI::App& parent) {
   app->add_flag("--quiet", opt->quiet, "print nothing but errors");
 
   auto run = [opt]() {
-    ProblemSpec spec;
-    BoundaryValueProblem problem;
-    BvpOptions options;
+    PreparedBvp prepared;
     try {
-      spec = load_problem(opt->file, opt->overrides);
-      problem = make_boundary_value_problem(spec);
-      options = make_bvp_options(spec);
+      prepared = prepare_bvp(load_problem(opt->file, opt->overrides));
+    } catch (const ProblemFileError& e) {
+      throw UsageError(e.what());
+    }
+    const ProblemSpec& spec = prepared.spec;
+    BoundaryValueProblem& problem = prepared.problem;
+    BvpOptions& options = prepared.options;
+    try {
       if (opt->sum == "extended") {
         problem.sum = ActionSum::kExtended;
       } else if (opt->sum == "printed") {
@@ -79,11 +83,6 @@ Command add_bvp_command(CLI::App& parent) {
       }
       options.residual_tolerance = opt->tolerance;
       validate(options);
-    } catch (const ProblemFileError& e) {
-      throw UsageError(e.what());
-    } catch (const ExpressionError& e) {
-      throw UsageError(spec.source + ": " + e.reason() + " at column " +
-                       std::to_string(e.column() + 1));
     } catch (const ValidationError& e) {
       throw UsageError(spec.source + ": " + e.what());
     }

@@ -16,6 +16,9 @@ Quick start (examples/python/quickstart.py)::
     fracvi.write(solution, problem, "out")           # the files of `fracvi run`
     fracvi.plot(solution, "out")                     # its three PNG plots
 
+Boundary value problems ([boundary], `fracvi bvp`): fracvi.solve_bvp(problem) returns the curves
+x, y of the discrete fractional Euler–Lagrange equations with their residuals.
+
 Problems use the schema of the problem files (docs/problem-file.md) and are validated by the same
 C++ code as `fracvi run`: bad input raises ProblemError (a ValueError) with exactly the message the
 command line prints. Numerical failure is not an exception: the Solution has a status, a message
@@ -39,7 +42,7 @@ from ._fracvi import ProblemError
 
 __all__ = [
     "Problem", "ProblemError", "Solution", "IntegrationError", "integrate", "write", "plot",
-    "methods", "problem_schema",
+    "BvpSolution", "solve_bvp", "methods", "problem_schema",
     "gl_weights", "cq_weights", "midpoint", "delta_minus", "delta_plus", "frac_delta_minus",
     "frac_delta_plus", "convolve_past", "convolve_future", "rl_derivative",
     "rl_derivative_power",
@@ -81,23 +84,16 @@ def _plain(value):
 
 
 def _schema():
-    """Sections and the section of every key, read from the resolved built-in problem (so the
-    schema lives in one place, the C++ reader), plus the alternative keys the resolved built-in
-    problem does not contain (model.damping_order = 2α, time.step = h, model.lagrangian). Keys of
-    sections it does not have ([boundary]) are given in their section: boundary=dict(...)."""
-    resolved = _fracvi.parse_toml(_fracvi.default_problem_toml(), "<built-in problem>",
-                                  []).to_dict()
-    sections = {k for k, v in resolved.items() if isinstance(v, dict)}
-    owner = {}
-    for section in sorted(sections):
-        for key in resolved[section]:
-            owner.setdefault(key, []).append(section)
-    owner.setdefault("damping_order", []).append("model")
-    owner.setdefault("step", []).append("time")
-    owner.setdefault("lagrangian", []).append("model")
-    owner.setdefault("chain", []).append("model")
-    # Keys that exist in more than one section have no flat form.
-    return sections, {k: v[0] for k, v in owner.items() if len(v) == 1}
+    """The sections (top-level tables) of the problem-file schema and the section of every key
+    that may be given flat, from the one schema of the C++ reader (problem_schema()): the keys of
+    [model], [initial], [time], [method] and [output]. Keys of [boundary], [reference] and
+    [model.chain] are given in their section (boundary=dict(start=..., end=...)): their names
+    (start, end, position, boundary) are taken by the flat keys or by a section."""
+    rows = _fracvi.problem_schema()
+    sections = {row["key"] for row in rows if row["section"] == "" and row["type"] == "table"}
+    flat = {row["key"]: row["section"] for row in rows
+            if row["section"] in ("model", "initial", "time", "method", "output")}
+    return sections, flat
 
 
 _SECTIONS, _FLAT_KEYS = _schema()
@@ -228,8 +224,13 @@ class Problem:
     force = property(lambda self: list(self._spec.force), doc="f(t): [] or d formulas")
     lagrangian = property(lambda self: self._spec.lagrangian,
                           doc="a general L(t, x, y, xdot, ydot, dx, dy), or '' (mechanical model)")
-    position = property(lambda self: self._spec.position, doc="x(t0)")
+    position = property(lambda self: self._spec.position,
+                        doc="x(t0) (empty for a boundary value problem without [initial])")
     velocity = property(lambda self: self._spec.velocity, doc="x'(t0)")
+    boundary = property(lambda self: dict(start=self._spec.boundary_start,
+                                          end=self._spec.boundary_end)
+                        if len(self._spec.boundary_start) else None,
+                        doc="[boundary] as dict(start=x(start), end=x(end)) (arrays), or None")
     start = property(lambda self: self._spec.start, doc="t0")
     end = property(lambda self: self._spec.end, doc="t_end")
     steps = property(lambda self: self._spec.steps, doc="N")
@@ -351,24 +352,133 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostic
     != "success", its message and the trajectory so far; raise_on_failure=True raises
     IntegrationError instead (with .solution). Bad input raises ProblemError / ValueError.
     """
-    problem = _as_problem(problem)
-    sections = {}
-    for key, value in fields.items():
-        section = _FIELD_SECTIONS.get(key)
-        if section is None:
-            valid = ", ".join(sorted(_FIELD_SECTIONS)) + ", " + ", ".join(_RUN_OPTIONS)
-            raise TypeError(f"integrate() got an unexpected keyword argument '{key}' "
-                            f"(valid: {valid})")
-        if value is not None:
-            sections.setdefault(section, {})[key] = value
-    if sections:
-        document = problem.to_dict()
-        for section, values in sections.items():
-            document.setdefault(section, {}).update(values)
-        problem = Problem.from_dict(document, source=problem.source)
+    problem = _with_fields(_as_problem(problem), fields, "integrate", _FIELD_SECTIONS,
+                           _RUN_OPTIONS)
     run = _fracvi.integrate(problem._spec, bool(mirror), bool(diagnostics),
                             float(newton_absolute_tolerance), history or "", start)
     solution = Solution(run, problem)
+    if raise_on_failure and not solution.ok:
+        raise IntegrationError(solution)
+    return solution
+
+
+def _with_fields(problem, fields, function, valid_fields, run_options):
+    """`problem` with the [method]/[output] keywords `fields` applied (validated by the reader,
+    like a problem file); an unknown keyword is a TypeError naming the valid ones."""
+    sections = {}
+    for key, value in fields.items():
+        section = valid_fields.get(key)
+        if section is None:
+            valid = ", ".join(sorted(valid_fields)) + ", " + ", ".join(run_options)
+            raise TypeError(f"{function}() got an unexpected keyword argument '{key}' "
+                            f"(valid: {valid})")
+        if value is not None:
+            sections.setdefault(section, {})[key] = value
+    if not sections:
+        return problem
+    document = problem.to_dict()
+    for section, values in sections.items():
+        document.setdefault(section, {}).update(values)
+    return Problem.from_dict(document, source=problem.source)
+
+
+# ---------------------------------------------------------------------------------------------
+# Boundary value problems
+
+class BvpSolution:
+    """The result of solve_bvp(): the curves x and y of the restricted discrete variational
+    principle (`DiscFracEL`) with x(a) = start = y(b), x(b) = end = y(a), the residuals of the
+    equations, Newton's statistics and a status — what `fracvi bvp` prints and writes.
+
+    t (N+1,), x, y, x_residual, y_residual (N+1, d) are read-only NumPy views of the C++ storage
+    (the best iterate Newton found; residual rows 0 and N are zero). status is "success" when
+    every equation is at most residual_tolerance in absolute value.
+    """
+
+    __slots__ = ("_run", "problem")
+
+    def __init__(self, run, problem):
+        self._run = run
+        self.problem = problem
+
+    t = _view("t", "t_k = start + k h, shape (N+1,)")
+    x = _view("x", "x_k, shape (N+1, d), x[0] = boundary start, x[N] = boundary end")
+    y = _view("y", "y_k, shape (N+1, d), y[0] = boundary end, y[N] = boundary start")
+    x_residual = _view("x_residual", "the x-equations of DiscFracEL at k, shape (N+1, d)")
+    y_residual = _view("y_residual", "the y-equations of DiscFracEL at k, shape (N+1, d)")
+    status = _view("status", '"success", "newton-failure", "non-finite", …')
+    ok = _view("ok", "status == 'success'")
+    message = _view("message", "empty on success; otherwise the cause and the iteration")
+    residual_norm = _view("residual_norm", "max |x_residual|, |y_residual|")
+    residual_floor = _view("residual_floor",
+                           "estimated rounding level of the equations (a tolerance below it "
+                           "cannot be met)")
+    residual_tolerance = _view("residual_tolerance", "the tolerance it was solved to")
+    residual_history = _view("residual_history",
+                             "max |F| before each Newton iteration, and the last (a list)")
+    newton_iterations = _view("newton_iterations", "Newton iterations")
+    linear_iterations = _view("linear_iterations", "GMRES iterations in total (0 for dense LU)")
+    linear_solver = _view("linear_solver", 'e.g. "dense LU (n = 396)"')
+    sum = _view("sum", '"extended" or "printed": the action sum whose equations were solved')
+    wall_time = _view("wall_time", "seconds")
+
+    @property
+    def scheme(self):
+        """The scheme whose Δ^α_± were used ([method] scheme)."""
+        return self.problem.scheme
+
+    @property
+    def dim(self):
+        return self._run.x.shape[1]
+
+    @property
+    def mirror_error(self):
+        """max_k ‖y_k − x_(N−k)‖_∞ (what `fracvi bvp` prints as `mirror`)."""
+        x, y = self.x, self.y
+        return float(np.max(np.abs(y - x[::-1]))) if len(x) else 0.0
+
+    def summary(self):
+        """The content of the summary.json of `fracvi bvp` as a dict."""
+        return self._run.summary()
+
+    def write(self, directory):
+        """Writes trajectory.csv (t, x, y, residual_x, residual_y), summary.json and
+        problem.toml into `directory`, as `fracvi bvp --out directory` does. Returns it."""
+        directory = os.fspath(directory)
+        self._run.write(directory)
+        return directory
+
+    def __repr__(self):
+        return (f"BvpSolution(status={self.status!r}, N={len(self.t) - 1}, dim={self.dim}, "
+                f"residual_norm={self.residual_norm:.3g}, scheme={self.scheme!r})")
+
+
+def solve_bvp(problem, *, sum="extended", solver="auto", tolerance=None, raise_on_failure=False,
+              **fields):
+    """Solves the variational boundary value problem of `problem` (a Problem, a dict, or a TOML
+    path/text with a [boundary] section), as `fracvi bvp` does: all interior x_k, y_k of the
+    restricted discrete fractional Euler–Lagrange equations (`DiscFracEL`) at once, by Newton's
+    method with the exact Jacobian, for the problem's Lagrangian ([model] lagrangian, or the
+    mechanical fields with the Riemann–Liouville convention).
+
+    The fractional differences Δ^α_± are those of [method] scheme (Grünwald–Letnikov for
+    "fvi-gl", BDF2 convolution quadrature for "fvi-bdf2"); a scheme without a boundary value form
+    raises ProblemError. Every key of [method] and [output] may be given as a keyword, as for
+    integrate() (scheme, newton_max_iterations: Newton's iteration limit, every: the stride of
+    the written trajectory.csv, …). The rest are the options of `fracvi bvp`: sum ("extended":
+    the paper's printed DiscFracEL, or "printed": the exact equations of the printed action sum),
+    solver ("auto", "dense" or "krylov") and tolerance (converged when every equation is at most
+    this in absolute value; default 1e-10).
+
+    Returns a BvpSolution. Numerical failure is a status (the best iterate is returned);
+    raise_on_failure=True raises IntegrationError instead. Bad input raises ProblemError.
+    """
+    problem = _with_fields(_as_problem(problem), fields, "solve_bvp", _BVP_FIELD_SECTIONS,
+                           _BVP_OPTIONS)
+    if tolerance is None:
+        tolerance = _fracvi.default_bvp_tolerance
+    run = _fracvi.solve_bvp(problem._spec, sum, solver, float(tolerance))
+    solution = BvpSolution(run, problem)
     if raise_on_failure and not solution.ok:
         raise IntegrationError(solution)
     return solution
@@ -433,8 +543,10 @@ def plot(solution, directory=None, *, show=None):
 # The problem-file schema and the method registry
 
 def problem_schema():
-    """Every field of a problem file (the one schema of the reader, the docs and integrate()'s
-    keywords): a list of dicts with section ("" for the top level), key, type, default, summary."""
+    """Every field of a problem file (the one schema of the reader, the writers, the docs and the
+    keywords of integrate() and solve_bvp()): a list of dicts with section ("" for the top
+    level), key, type, default, summary and binding, the C++ member the field fills (e.g.
+    "InitialValueProblem::x0" for [initial] position; "" for a section). Keywords use the keys."""
     return _fracvi.problem_schema()
 
 
@@ -443,6 +555,10 @@ _FIELD_SECTIONS = {row["key"]: row["section"] for row in _fracvi.problem_schema(
                    if row["section"] in ("method", "output") and row["key"] != "history"}
 _RUN_OPTIONS = ("newton_absolute_tolerance", "mirror", "diagnostics", "history", "start",
                 "raise_on_failure")
+# solve_bvp()'s keywords: every key of [method] and [output].
+_BVP_FIELD_SECTIONS = {row["key"]: row["section"] for row in _fracvi.problem_schema()
+                       if row["section"] in ("method", "output")}
+_BVP_OPTIONS = ("sum", "solver", "tolerance", "raise_on_failure")
 
 def methods():
     """The time-stepping schemes, one dict per scheme (the registry `fracvi methods` prints):
@@ -496,14 +612,18 @@ def delta_plus(z, h):
     return _fracvi.delta_plus(z, float(h))
 
 
-def frac_delta_minus(z, h, alpha):
-    """Δ^α_− z_k = h^(−α) Σ_{n=0}^{k} α_n z_{k−n} for k = 0..N (`DiscFracDerDef`)."""
-    return _fracvi.frac_delta_minus(z, float(h), float(alpha))
+def frac_delta_minus(z, h, alpha, quadrature="gl"):
+    """Δ^α_− z_k = h^(−α) Σ_{n=0}^{k} w_n z_{k−n} for k = 0..N (`DiscFracDerDef`), with the
+    weights w_n = cq_weights(alpha, N+1, quadrature): the paper's Grünwald–Letnikov α_n for
+    quadrature="gl" (order 1), BDF2 ("bdf2", order 2; the Δ^α_− of the scheme fvi-bdf2) or the
+    trapezoidal rule ("trapezoidal", order 2)."""
+    return _fracvi.frac_delta_minus(z, float(h), float(alpha), quadrature)
 
 
-def frac_delta_plus(z, h, alpha):
-    """Δ^α_+ z_k = h^(−α) Σ_{n=0}^{N−k} α_n z_{k+n} for k = 0..N (`DiscFracDerDef`)."""
-    return _fracvi.frac_delta_plus(z, float(h), float(alpha))
+def frac_delta_plus(z, h, alpha, quadrature="gl"):
+    """Δ^α_+ z_k = h^(−α) Σ_{n=0}^{N−k} w_n z_{k+n} for k = 0..N (`DiscFracDerDef`), with the
+    weights of frac_delta_minus (quadrature "gl", "bdf2" or "trapezoidal")."""
+    return _fracvi.frac_delta_plus(z, float(h), float(alpha), quadrature)
 
 
 def convolve_past(w, z):

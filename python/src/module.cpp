@@ -43,6 +43,7 @@
 #include "fracvi/io/problem_file.hpp"
 #include "fracvi/io/problem_schema.hpp"
 #include "fracvi/io/run.hpp"
+#include "fracvi/lagrangian/bvp.hpp"
 #include "fracvi/schemes/registry.hpp"
 
 namespace py = pybind11;
@@ -129,13 +130,18 @@ nlohmann::json from_python(py::handle h, const std::string& key, const std::stri
 // ---------------------------------------------------------------------------------------------
 // Problems.
 
-/// Parses with `parse` and applies every check `fracvi run` applies before its first step
-/// (prepare_run, shared with the CLI), with the CLI's messages. A spec that passes can be
-/// integrated.
+/// Parses with `parse` and applies every check the command line applies before its first step,
+/// with its messages: those of `fracvi run` (prepare_run) for a problem with [initial], which can
+/// then be integrated, and those of `fracvi bvp` (prepare_bvp) for a boundary value problem
+/// without [initial], which can then be solved by solve_bvp.
 template <class Parse>
 ProblemSpec checked_spec(Parse&& parse) {
   try {
-    return prepare_run(parse()).spec;
+    ProblemSpec spec = parse();
+    if (spec.position.size() == 0 && spec.boundary_start.size() > 0) {
+      return prepare_bvp(std::move(spec)).spec;
+    }
+    return prepare_run(std::move(spec)).spec;
   } catch (const ProblemFileError& e) {
     throw ProblemError(e.what());
   }
@@ -254,6 +260,54 @@ std::unique_ptr<Run> run_problem(const ProblemSpec& spec, bool mirror, bool diag
 }
 
 // ---------------------------------------------------------------------------------------------
+// Boundary value problems (`fracvi bvp`).
+
+/// What solve_bvp produced, with the problem it solved (make_bvp_summary, write_bvp_output).
+struct BvpRun {
+  ProblemSpec spec;
+  BvpSolution solution;
+};
+
+/// `fracvi bvp` from Python: prepare_bvp (the CLI's checks and messages: no [boundary], a scheme
+/// without a boundary value form, …) and the CLI's --sum, --solver and --tolerance.
+std::unique_ptr<BvpRun> run_bvp(const ProblemSpec& spec, const std::string& sum,
+                                const std::string& solver, double tolerance) {
+  PreparedBvp prepared;
+  try {
+    prepared = prepare_bvp(spec);
+  } catch (const ProblemFileError& e) {
+    throw ProblemError(e.what());
+  }
+  if (sum == "extended") {
+    prepared.problem.sum = ActionSum::kExtended;
+  } else if (sum == "printed") {
+    prepared.problem.sum = ActionSum::kPrinted;
+  } else {
+    throw py::value_error("sum = '" + sum + "' must be 'extended' or 'printed'");
+  }
+  if (solver == "auto") {
+    prepared.options.linear_solver = BvpLinearSolver::kAuto;
+  } else if (solver == "dense") {
+    prepared.options.linear_solver = BvpLinearSolver::kDense;
+  } else if (solver == "krylov") {
+    prepared.options.linear_solver = BvpLinearSolver::kKrylov;
+  } else {
+    throw py::value_error("solver = '" + solver + "' must be 'auto', 'dense' or 'krylov'");
+  }
+  if (!(tolerance > 0.0) || !std::isfinite(tolerance)) {
+    throw py::value_error("tolerance = " + repr_text(py::float_(tolerance)) +
+                          " must be a positive number");
+  }
+  prepared.options.residual_tolerance = tolerance;
+  auto run = std::make_unique<BvpRun>();
+  run->spec = spec;
+  // The Lagrangian is a compiled formula: no Python runs during Newton's iterations.
+  py::gil_scoped_release release;
+  run->solution = solve_bvp(prepared.problem, prepared.options);
+  return run;
+}
+
+// ---------------------------------------------------------------------------------------------
 // Arrays owned by C++ buffers.
 
 template <class Buffer>
@@ -292,6 +346,14 @@ py::array from_sequence(Sequence&& s, const InputArray& like) {
   auto buffer = std::make_unique<Sequence>(std::move(s));
   if (like.ndim() == 1) return adopt(std::move(buffer), {n1}, {kDoubleSize});
   return adopt(std::move(buffer), {n1, d}, {d * kDoubleSize, kDoubleSize});
+}
+
+/// The generating function δ(ζ) of a convolution quadrature by name (fracvi weights --scheme).
+CqScheme parse_quadrature(const std::string& name, const char* op) {
+  if (const auto q = parse_cq_scheme(name)) return *q;
+  throw py::value_error(std::string(op) + ": quadrature = '" + name +
+                        "' is not a known convolution quadrature (choose gl, bdf2 or "
+                        "trapezoidal)");
 }
 
 void require_step(double h) {
@@ -396,6 +458,10 @@ void bind(py::module_& m) {
                              [](const ProblemSpec& s) { return vector_copy(s.position); })
       .def_property_readonly("velocity",
                              [](const ProblemSpec& s) { return vector_copy(s.velocity); })
+      .def_property_readonly("boundary_start",
+                             [](const ProblemSpec& s) { return vector_copy(s.boundary_start); })
+      .def_property_readonly("boundary_end",
+                             [](const ProblemSpec& s) { return vector_copy(s.boundary_end); })
       .def_readonly("start", &ProblemSpec::start)
       .def_readonly("end", &ProblemSpec::end)
       .def_readonly("steps", &ProblemSpec::steps)
@@ -509,6 +575,71 @@ void bind(py::module_& m) {
   m.def("integrate", &run_problem, py::arg("spec"), py::arg("mirror"), py::arg("diagnostics"),
         py::arg("absolute_tolerance"), py::arg("history"), py::arg("start"));
 
+  // --- boundary value problems ---------------------------------------------------------------
+  py::class_<BvpRun>(m, "BvpRun",
+                     "A BvpSolution and the problem it solves (C++ fracvi::BvpSolution).")
+      .def_property_readonly("t",
+                             [](py::object self) {
+                               const auto& s = self.cast<const BvpRun&>().solution;
+                               return view(self, s.t.data(), s.t.size(), 0);
+                             })
+      .def_property_readonly("x",
+                             [](py::object self) {
+                               const auto& s = self.cast<const BvpRun&>().solution;
+                               return view(self, s.x.data(), s.x.rows(), s.x.cols());
+                             })
+      .def_property_readonly("y",
+                             [](py::object self) {
+                               const auto& s = self.cast<const BvpRun&>().solution;
+                               return view(self, s.y.data(), s.y.rows(), s.y.cols());
+                             })
+      .def_property_readonly("x_residual",
+                             [](py::object self) {
+                               const auto& s = self.cast<const BvpRun&>().solution;
+                               return view(self, s.x_residual.data(), s.x_residual.rows(),
+                                           s.x_residual.cols());
+                             })
+      .def_property_readonly("y_residual",
+                             [](py::object self) {
+                               const auto& s = self.cast<const BvpRun&>().solution;
+                               return view(self, s.y_residual.data(), s.y_residual.rows(),
+                                           s.y_residual.cols());
+                             })
+      .def_property_readonly(
+          "status", [](const BvpRun& r) { return std::string(to_string(r.solution.status)); })
+      .def_property_readonly("ok", [](const BvpRun& r) { return r.solution.ok(); })
+      .def_property_readonly("message", [](const BvpRun& r) { return r.solution.message; })
+      .def_property_readonly("residual_norm",
+                             [](const BvpRun& r) { return r.solution.residual_norm; })
+      .def_property_readonly("residual_floor",
+                             [](const BvpRun& r) { return r.solution.residual_floor; })
+      .def_property_readonly("residual_tolerance",
+                             [](const BvpRun& r) { return r.solution.residual_tolerance; })
+      .def_property_readonly("residual_history",
+                             [](const BvpRun& r) { return r.solution.residual_history; })
+      .def_property_readonly("newton_iterations",
+                             [](const BvpRun& r) { return r.solution.newton_iterations; })
+      .def_property_readonly("linear_iterations",
+                             [](const BvpRun& r) { return r.solution.linear_iterations; })
+      .def_property_readonly("linear_solver",
+                             [](const BvpRun& r) { return r.solution.linear_solver; })
+      .def_property_readonly("sum", [](const BvpRun& r) { return r.solution.sum; })
+      .def_property_readonly("wall_time",
+                             [](const BvpRun& r) { return r.solution.wall_time_seconds; })
+      .def_property_readonly("spec", [](const BvpRun& r) { return r.spec; })
+      .def("summary",
+           [](const BvpRun& r) { return to_python(make_bvp_summary(r.spec, r.solution)); })
+      .def(
+          "write",
+          [](const BvpRun& r, const std::string& directory) {
+            write_bvp_output(directory, r.spec, r.solution);
+          },
+          py::arg("directory"));
+
+  m.def("solve_bvp", &run_bvp, py::arg("spec"), py::arg("sum"), py::arg("solver"),
+        py::arg("tolerance"));
+  m.attr("default_bvp_tolerance") = BvpOptions{}.residual_tolerance;
+
   // --- weights -----------------------------------------------------------------------------
   m.def(
       "gl_weights",
@@ -540,6 +671,7 @@ void bind(py::module_& m) {
       row["type"] = f.type;
       row["default"] = f.default_text;
       row["summary"] = f.summary;
+      row["binding"] = f.binding;
       out.append(row);
     }
     return out;
@@ -587,18 +719,22 @@ void bind(py::module_& m) {
       py::arg("z"), py::arg("h"));
   m.def(
       "frac_delta_minus",
-      [](const InputArray& z, double h, double alpha) {
+      [](const InputArray& z, double h, double alpha, const std::string& quadrature) {
         require_step(h);
-        return from_sequence(frac_delta_minus(to_sequence(z, "frac_delta_minus"), h, alpha), z);
+        return from_sequence(frac_delta_minus(to_sequence(z, "frac_delta_minus"), h, alpha,
+                                              parse_quadrature(quadrature, "frac_delta_minus")),
+                             z);
       },
-      py::arg("z"), py::arg("h"), py::arg("alpha"));
+      py::arg("z"), py::arg("h"), py::arg("alpha"), py::arg("quadrature"));
   m.def(
       "frac_delta_plus",
-      [](const InputArray& z, double h, double alpha) {
+      [](const InputArray& z, double h, double alpha, const std::string& quadrature) {
         require_step(h);
-        return from_sequence(frac_delta_plus(to_sequence(z, "frac_delta_plus"), h, alpha), z);
+        return from_sequence(frac_delta_plus(to_sequence(z, "frac_delta_plus"), h, alpha,
+                                             parse_quadrature(quadrature, "frac_delta_plus")),
+                             z);
       },
-      py::arg("z"), py::arg("h"), py::arg("alpha"));
+      py::arg("z"), py::arg("h"), py::arg("alpha"), py::arg("quadrature"));
   m.def(
       "convolve_past",
       [](const InputArray& w, const InputArray& z) {

@@ -41,21 +41,9 @@ BAD = [
 ]
 
 
-# Files `fracvi run` rejects as a whole (not edits of PROBLEM).
+# Files `fracvi run` rejects as a whole (not edits of PROBLEM). A boundary value problem without
+# [initial] is a valid Problem (for solve_bvp); integrate() refuses it (test_bvp.py).
 BAD_FILES = [
-    ("boundary value problem only", """\
-name = "bvp"
-[model]
-dim = 1
-lagrangian = "xdot1^2/2 - x1^2/2"
-alpha = 0.5
-[boundary]
-start = [1.0]
-end = [0.0]
-[time]
-end = 1.0
-steps = 10
-"""),
     ("Lagrangian not of mechanical form", """\
 name = "coupled"
 [model]
@@ -243,3 +231,44 @@ def test_unknown_keyword_same_message_as_cli(cli, write_file):
     with pytest.raises(ValueError) as e:
         fracvi.Problem(source=path, **d)
     assert str(e.value) == message
+
+
+# --- the one schema ----------------------------------------------------------------------------
+
+def test_schema_rows_name_their_cpp_member():
+    rows = fracvi.problem_schema()
+    fields = [r for r in rows if r["type"] != "table"]
+    assert {tuple(sorted(r)) for r in rows} == {
+        ("binding", "default", "key", "section", "summary", "type")}
+    by_key = {(r["section"], r["key"]): r["binding"] for r in fields}
+    # The drift between file keys and C++ names, written down (docs/problem-file.md).
+    assert by_key[("initial", "position")] == "InitialValueProblem::x0"
+    assert by_key[("initial", "velocity")] == "InitialValueProblem::v0"
+    assert by_key[("output", "every")] == "IntegratorOptions::save_every"
+    assert by_key[("method", "newton_tolerance")] == "NewtonOptions::relative_tolerance"
+    for r in fields:
+        assert "::" in r["binding"], r
+
+
+def test_keywords_are_the_file_keys(tmp_path):
+    # Every [method]/[output] key is a keyword of integrate() and solve_bvp() under its file name
+    # (not its C++ name), and lands in that field of the problem.
+    rows = [r for r in fracvi.problem_schema() if r["section"] in ("method", "output")]
+    values = dict(scheme="fvi-bdf2", newton_tolerance=1e-11, newton_max_iterations=40,
+                  history="direct", history_tolerance=1e-9, linear_solver="dense", threads=1,
+                  every=2)
+    assert {r["key"] for r in rows} == set(values)
+    problem = fracvi.Problem.from_toml(PROBLEM)
+    fields = {k: v for k, v in values.items() if k != "history"}  # a run option of integrate()
+    solution = fracvi.integrate(problem, **fields)
+    resolved = solution.summary()["problem"]
+    for r in rows:
+        if r["key"] in fields:
+            assert resolved[r["section"]][r["key"]] == values[r["key"]], r["key"]
+    for cpp_name in ("save_every", "relative_tolerance", "max_iterations", "x0"):
+        with pytest.raises(TypeError, match=f"unexpected keyword argument '{cpp_name}'"):
+            fracvi.integrate(problem, **{cpp_name: 1})
+    # Flat keys of Problem() are file keys too: position/velocity, not x0/v0.
+    with pytest.raises(fracvi.ProblemError, match="x0: unknown key"):
+        fracvi.Problem(dim=1, mass=1.0, alpha=0.5, potential="x1^2/2", x0=[1.0], end=1.0,
+                       steps=10)

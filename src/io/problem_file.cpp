@@ -41,31 +41,6 @@ std::string joined(const std::vector<std::string>& names, const char* separator 
   return out;
 }
 
-std::size_t edit_distance(std::string_view a, std::string_view b) {
-  std::vector<std::size_t> row(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    std::size_t diag = row[0];
-    row[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j) {
-      const std::size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diag = up;
-    }
-  }
-  return row[b.size()];
-}
-
-std::string suggestion(std::string_view wrong, const std::vector<std::string>& candidates) {
-  std::string best;
-  std::size_t best_d = std::max<std::size_t>(2, wrong.size() / 3) + 1;
-  for (const auto& c : candidates) {
-    const std::size_t d = edit_distance(wrong, c);
-    if (d < best_d) best_d = d, best = c;
-  }
-  return best.empty() ? "" : " (did you mean '" + best + "'?)";
-}
-
 // The value as given: the shortest text that reads back as the same double (-0.2, not
 // -0.20000000000000001); `digits` significant digits otherwise.
 std::string format_value(double v, int digits = 0) {
@@ -93,9 +68,12 @@ class Reader {
       const std::string key(k.str());
       const auto& top = s.at("");
       if (std::find(top.begin(), top.end(), key) == top.end()) {
-        fail(key, "unknown key or section" + suggestion(key, top) +
-                      "; valid: name, [model], [initial], [boundary], [time], [method], [output], "
-                      "[reference]");
+        std::vector<std::string> valid;
+        for (const std::string& name : top)
+          if (!is_schema_section(name)) valid.push_back(name);
+        for (const std::string& name : schema_section_names())
+          if (name.find('.') == std::string::npos) valid.push_back(name);
+        fail(key, "unknown key or section" + did_you_mean(key, top) + "; valid: " + joined(valid));
       }
       if (key == "name") continue;
       if (!v.is_table()) fail(key, "must be a section [" + key + "], not a value");
@@ -110,7 +88,7 @@ class Reader {
     for (auto&& [k, v] : table) {
       const std::string sub(k.str());
       if (std::find(allowed.begin(), allowed.end(), sub) == allowed.end()) {
-        fail(path + "." + sub, "unknown key" + suggestion(sub, allowed) + "; valid in [" + path +
+        fail(path + "." + sub, "unknown key" + did_you_mean(sub, allowed) + "; valid in [" + path +
                                    "]: " + joined(allowed));
       }
       if (v.is_table() && s.count(path + "." + sub) != 0) {
@@ -143,17 +121,17 @@ class Reader {
   }
 
   double number(const toml::node& n, const std::string& key) const {
-    if (!n.is_number()) fail(key, "must be a number, got " + type_name(n));
+    if (!n.is_number()) fail(key, value_text(n) + "must be a number, got " + type_name(n));
     const double v = *n.value<double>();
     if (!std::isfinite(v)) fail(key, "= " + format_value(v) + " must be finite");
     return v;
   }
   long long integer(const toml::node& n, const std::string& key) const {
-    if (!n.is_integer()) fail(key, "must be an integer, got " + type_name(n));
+    if (!n.is_integer()) fail(key, value_text(n) + "must be an integer, got " + type_name(n));
     return *n.value<long long>();
   }
   std::string string(const toml::node& n, const std::string& key) const {
-    if (!n.is_string()) fail(key, "must be a string, got " + type_name(n));
+    if (!n.is_string()) fail(key, value_text(n) + "must be a string, got " + type_name(n));
     return *n.value<std::string>();
   }
   Eigen::VectorXd vector(const toml::node& n, const std::string& key, Eigen::Index d) const {
@@ -239,6 +217,17 @@ class Reader {
     return vector(n, key, d);
   }
 
+  // "= <value> " for the message of a value of the wrong type (scalars and short arrays as TOML
+  // writes them), "" for a table or a long array; fail() then reads "key = value must be …".
+  static std::string value_text(const toml::node& n) {
+    if (n.is_table()) return "";
+    std::ostringstream os;
+    n.visit([&os](const auto& v) { os << v; });
+    const std::string text = os.str();
+    if (text.size() > 60 || text.find('\n') != std::string::npos) return "";
+    return "= " + text + " ";
+  }
+
   static std::string type_name(const toml::node& n) {
     switch (n.type()) {
       case toml::node_type::string: return "a string";
@@ -313,7 +302,7 @@ ChainOptions read_chain(const Reader& r, const toml::node& node, Eigen::Index d)
     const auto parsed = parse_chain_boundary(b);
     if (!parsed) {
       r.fail("model.chain.boundary", "= \"" + b + "\" is not one of fixed, free, periodic" +
-                                         suggestion(b, {"fixed", "free", "periodic"}));
+                                         did_you_mean(b, {"fixed", "free", "periodic"}));
     }
     c.boundary = *parsed;
   }
@@ -336,6 +325,10 @@ void apply_override(toml::table& root, const std::string& assignment, const std:
   }
   const std::string path = assignment.substr(0, eq);
   const std::string text = assignment.substr(eq + 1);
+  // The key through the schema before anything is changed, so that a typo names --set.
+  if (const std::string unknown = unknown_field_message(path); !unknown.empty()) {
+    throw ProblemFileError(source + ": --set " + unknown);
+  }
   // The value as TOML if it is one, else as a plain string.
   toml::table parsed;
   bool is_toml = true;
@@ -432,7 +425,7 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     if (p.convention != "caputo" && p.convention != "riemann-liouville") {
       r.fail("model.convention", "= \"" + p.convention +
                                      "\" must be \"caputo\" or \"riemann-liouville\"" +
-                                     suggestion(p.convention, {"caputo", "riemann-liouville"}));
+                                     did_you_mean(p.convention, {"caputo", "riemann-liouville"}));
     }
   } else if (!(p.damping.is_zero() || p.alpha == 0.5)) {
     r.fail("model.convention",
@@ -538,7 +531,7 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
       std::vector<std::string> known;
       for (const SchemeInfo* info : registered_schemes()) known.emplace_back(info->name);
       r.fail("method.scheme", "= \"" + p.scheme + "\" is not a known scheme (available: " +
-                                  scheme_names() + ")" + suggestion(p.scheme, known));
+                                  scheme_names() + ")" + did_you_mean(p.scheme, known));
     }
   }
   if (const auto* n = r.find("method", "newton_tolerance")) {
@@ -559,7 +552,7 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     p.history = r.string(*n, "method.history");
     if (p.history != "auto" && p.history != "direct" && p.history != "fast") {
       r.fail("method.history", "= \"" + p.history + "\" must be \"auto\", \"direct\" or \"fast\"" +
-                                   suggestion(p.history, {"auto", "direct", "fast"}));
+                                   did_you_mean(p.history, {"auto", "direct", "fast"}));
     }
   }
   if (const auto* n = r.find("method", "history_tolerance")) {
@@ -576,7 +569,7 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     if (!parse_linear_solver(p.linear_solver)) {
       const std::vector<std::string> solvers{"auto", "dense", "banded", "sparse"};
       r.fail("method.linear_solver", "= \"" + p.linear_solver + "\" is not one of " +
-                                         joined(solvers) + suggestion(p.linear_solver, solvers));
+                                         joined(solvers) + did_you_mean(p.linear_solver, solvers));
     }
   }
   if (const auto* n = r.find("method", "threads")) {
@@ -732,188 +725,28 @@ every = 1
 )toml";
 }
 
-namespace {
-bool is_constant(const Eigen::VectorXd& v) {
-  return v.size() > 0 && (v.array() == v[0]).all();
-}
-// The compact forms of a problem file: a diagonal (sparse storage) with equal entries is one
-// number, another diagonal d numbers; dense storage (or a non-diagonal sparse matrix, which a
-// problem file cannot produce) is written as d rows.
-std::optional<Eigen::VectorXd> stored_diagonal(const ModelMatrix& m) {
-  if (!m.is_sparse() || !m.is_diagonal()) return std::nullopt;
-  return Eigen::VectorXd(m.sparse().diagonal());
-}
-nlohmann::json vector_json(const Eigen::VectorXd& v) {
-  nlohmann::json a = nlohmann::json::array();
-  for (Eigen::Index i = 0; i < v.size(); ++i) a.push_back(v[i]);
-  return a;
-}
-nlohmann::json matrix_json(const ModelMatrix& m) {
-  if (const auto diagonal = stored_diagonal(m)) {
-    return is_constant(*diagonal) ? nlohmann::json((*diagonal)[0]) : vector_json(*diagonal);
-  }
-  const Eigen::MatrixXd dense = m.to_dense();
-  nlohmann::json rows = nlohmann::json::array();
-  for (Eigen::Index i = 0; i < dense.rows(); ++i) {
-    nlohmann::json row = nlohmann::json::array();
-    for (Eigen::Index j = 0; j < dense.cols(); ++j) row.push_back(dense(i, j));
-    rows.push_back(row);
-  }
-  return rows;
-}
-// Initial data: the formula it was given as, one number for a constant vector (d ≥ 2), else d
-// numbers.
-nlohmann::json initial_json(const Eigen::VectorXd& v, const std::string& formula) {
-  if (!formula.empty()) return formula;
-  if (v.size() >= 2 && is_constant(v)) return v[0];
-  return vector_json(v);
-}
-toml::array vector_toml(const Eigen::VectorXd& v) {
-  toml::array a;
-  for (Eigen::Index i = 0; i < v.size(); ++i) a.push_back(v[i]);
-  return a;
-}
-void insert_matrix(toml::table& t, const std::string& key, const ModelMatrix& m) {
-  if (const auto diagonal = stored_diagonal(m)) {
-    if (is_constant(*diagonal)) {
-      t.insert(key, (*diagonal)[0]);
-    } else {
-      t.insert(key, vector_toml(*diagonal));
-    }
-    return;
-  }
-  const Eigen::MatrixXd dense = m.to_dense();
-  toml::array rows;
-  for (Eigen::Index i = 0; i < dense.rows(); ++i) {
-    toml::array row;
-    for (Eigen::Index j = 0; j < dense.cols(); ++j) row.push_back(dense(i, j));
-    rows.push_back(row);
-  }
-  t.insert(key, rows);
-}
-void insert_initial(toml::table& t, const std::string& key, const Eigen::VectorXd& v,
-                    const std::string& formula) {
-  if (!formula.empty()) {
-    t.insert(key, formula);
-  } else if (v.size() >= 2 && is_constant(v)) {
-    t.insert(key, v[0]);
-  } else {
-    t.insert(key, vector_toml(v));
-  }
-}
-nlohmann::json chain_json(const ChainOptions& c) {
-  return {{"stiffness", c.stiffness},
-          {"cubic", c.cubic},
-          {"quartic", c.quartic},
-          {"onsite", c.onsite},
-          {"boundary", std::string(to_string(c.boundary))}};
-}
-toml::table chain_toml(const ChainOptions& c) {
-  return toml::table{{"stiffness", c.stiffness},
-                     {"cubic", c.cubic},
-                     {"quartic", c.quartic},
-                     {"onsite", c.onsite},
-                     {"boundary", std::string(to_string(c.boundary))}};
-}
-}  // namespace
-
+// The writers iterate the schema (io/problem_schema.hpp): every field that a resolved problem
+// writes is written, and to_toml is the TOML form of the same document, so the two cannot drift.
 nlohmann::json to_json(const ProblemSpec& p) {
-  nlohmann::json force = nlohmann::json::array();
-  for (const auto& f : p.force) force.push_back(f);
-  nlohmann::json j = {
-      {"name", p.name},
-      {"model",
-       {{"dim", p.dim},
-        {"mass", matrix_json(p.mass)},
-        {"damping", matrix_json(p.damping)},
-        {"alpha", p.alpha},
-        {"convention", p.convention},
-        {"potential", p.potential},
-        {"force", force}}},
-      {"initial",
-       {{"position", initial_json(p.position, p.position_formula)},
-        {"velocity", initial_json(p.velocity, p.velocity_formula)}}},
-      {"time", {{"start", p.start}, {"end", p.end}, {"steps", p.steps}}},
-      {"method",
-       {{"scheme", p.scheme},
-        {"newton_tolerance", p.newton_tolerance},
-        {"newton_max_iterations", p.newton_max_iterations},
-        {"history", p.history},
-        {"history_tolerance", p.history_tolerance},
-        {"linear_solver", p.linear_solver},
-        {"threads", p.threads}}},
-      {"output", {{"every", p.every}}},
-  };
-  if (p.chain) {
-    j["model"].erase("potential");
-    j["model"]["chain"] = chain_json(*p.chain);
+  nlohmann::json document = nlohmann::json::object();
+  for (const ProblemField& field : problem_schema()) {
+    if (field.write == nullptr) continue;
+    nlohmann::json value = field.write(p);
+    if (value.is_null()) continue;
+    nlohmann::json* table = &document;
+    for (std::size_t from = 0; !field.section.empty() && from <= field.section.size();) {
+      const std::size_t dot = std::min(field.section.find('.', from), field.section.size());
+      table = &(*table)[field.section.substr(from, dot - from)];
+      from = dot + 1;
+    }
+    (*table)[field.key] = std::move(value);
   }
-  if (!p.reference.empty()) j["reference"] = {{"position", p.reference}};
-  if (!p.lagrangian.empty()) {
-    j["model"] = {{"dim", p.dim},
-                  {"lagrangian", p.lagrangian},
-                  {"alpha", p.alpha},
-                  {"convention", p.convention}};
-  }
-  if (p.position.size() == 0) j.erase("initial");
-  if (p.boundary_start.size() > 0) {
-    j["boundary"] = {{"start", vector_json(p.boundary_start)},
-                     {"end", vector_json(p.boundary_end)}};
-  }
-  return j;
+  return document;
 }
 
 std::string to_toml(const ProblemSpec& p) {
-  toml::array force;
-  for (const auto& f : p.force) force.push_back(f);
-  toml::table model{{"dim", static_cast<int64_t>(p.dim)}};
-  insert_matrix(model, "mass", p.mass);
-  insert_matrix(model, "damping", p.damping);
-  model.insert("alpha", p.alpha);
-  model.insert("convention", p.convention);
-  if (p.chain) {
-    model.insert("chain", chain_toml(*p.chain));
-  } else {
-    model.insert("potential", p.potential);
-  }
-  if (!p.force.empty()) model.insert("force", force);
-  toml::table initial;
-  insert_initial(initial, "position", p.position, p.position_formula);
-  insert_initial(initial, "velocity", p.velocity, p.velocity_formula);
-  toml::table root{
-      {"name", p.name},
-      {"model", model},
-      {"initial", initial},
-      {"time",
-       toml::table{{"start", p.start}, {"end", p.end}, {"steps", static_cast<int64_t>(p.steps)}}},
-      {"method",
-       toml::table{{"scheme", p.scheme},
-                   {"newton_tolerance", p.newton_tolerance},
-                   {"newton_max_iterations", static_cast<int64_t>(p.newton_max_iterations)},
-                   {"history", p.history},
-                   {"history_tolerance", p.history_tolerance},
-                   {"linear_solver", p.linear_solver},
-                   {"threads", static_cast<int64_t>(p.threads)}}},
-      {"output", toml::table{{"every", static_cast<int64_t>(p.every)}}},
-  };
-  if (!p.reference.empty()) {
-    toml::array ref;
-    for (const auto& e : p.reference) ref.push_back(e);
-    root.insert("reference", toml::table{{"position", ref}});
-  }
-  if (!p.lagrangian.empty()) {
-    root.insert_or_assign("model", toml::table{{"dim", static_cast<int64_t>(p.dim)},
-                                               {"lagrangian", p.lagrangian},
-                                               {"alpha", p.alpha},
-                                               {"convention", p.convention}});
-  }
-  if (p.position.size() == 0) root.erase("initial");
-  if (p.boundary_start.size() > 0) {
-    root.insert("boundary", toml::table{{"start", vector_toml(p.boundary_start)},
-                                        {"end", vector_toml(p.boundary_end)}});
-  }
   std::ostringstream os;
-  os << root << '\n';
+  os << to_toml_table(to_json(p), p.source, "") << '\n';
   return os.str();
 }
 

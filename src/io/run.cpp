@@ -45,6 +45,25 @@ PreparedRun prepare_run(ProblemSpec spec) {
   }
 }
 
+PreparedBvp prepare_bvp(ProblemSpec spec) {
+  const std::string source = spec.source;
+  try {
+    PreparedBvp bvp;
+    bvp.problem = make_boundary_value_problem(spec);
+    bvp.options = make_bvp_options(spec);
+    validate(bvp.options);
+    bvp.spec = std::move(spec);
+    return bvp;
+  } catch (const ProblemFileError&) {
+    throw;
+  } catch (const ExpressionError& e) {
+    throw ProblemFileError(source + ": " + e.reason() + " at column " +
+                           std::to_string(e.column() + 1));
+  } catch (const ValidationError& e) {
+    throw ProblemFileError(source + ": " + e.what());
+  }
+}
+
 ConvergenceStudy convergence_study(const ProblemSpec& spec, std::span<const std::size_t> steps,
                                    std::span<const std::string> exact,
                                    std::size_t reference_steps) {

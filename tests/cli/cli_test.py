@@ -255,6 +255,36 @@ class Run(unittest.TestCase):
         self.assertEqual(r.returncode, 2)
         self.assertIn("model.alpha = 2", r.stderr)
 
+    def test_set_goes_through_the_schema(self):
+        # An unknown key: one line naming --set, the key, the nearest valid key and the valid keys;
+        # a value of the wrong type: the field, the value and the rule. Exit 2, no output.
+        out = os.path.join(self.dir, "set-out")
+        cases = [
+            (["method.newton_tolerence=1e-9"],
+             "fracvi run: <built-in problem>: --set method.newton_tolerence: unknown key (did you "
+             "mean 'newton_tolerance'?); valid in [method]: scheme, newton_tolerance, "
+             "newton_max_iterations, history, history_tolerance, linear_solver, threads"),
+            (["output.stride=2"],
+             "fracvi run: <built-in problem>: --set output.stride: unknown key; valid in [output]: "
+             "every"),
+            (["solver.kind=lu"],
+             "fracvi run: <built-in problem>: --set solver.kind: unknown section [solver]; valid "
+             "sections: [model], [model.chain], [initial], [boundary], [time], [method], "
+             "[output], [reference]"),
+            (["time.steps=many"],
+             "fracvi run: <built-in problem>: time.steps = 'many' must be an integer, got a "
+             "string"),
+            (["output.every=2.5"],
+             "fracvi run: <built-in problem>: output.every = 2.5 must be an integer, got a number"),
+        ]
+        for assignments, expected in cases:
+            args = [a for assignment in assignments for a in ("--set", assignment)]
+            r = run("run", *args, "--out", out, "--no-plot")
+            self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+            self.assertEqual(r.stdout, "")
+            self.assertEqual(r.stderr, expected + "\n")
+            self.assertFalse(os.path.exists(out), "output directory created on bad input")
+
 
 class Methods(unittest.TestCase):
     """The method registry reaches the CLI, and docs/schemes.md is its table."""

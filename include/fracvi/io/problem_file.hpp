@@ -103,8 +103,10 @@ struct ProblemSpec {
 };
 
 /// Parses and validates a problem from TOML text. `overrides` are "section.key=value" strings
-/// (the CLI's --set), applied before validation; value is read as a TOML value, or as a string
-/// when it is not one (so --set model.potential=x1^2 works without quotes).
+/// (the CLI's --set), applied before validation; the key must be a field of the schema
+/// ("<source>: --set <key>: unknown key ...; valid in [section]: ..." otherwise), the value is
+/// read as a TOML value, or as a string when it is not one (so --set model.potential=x1^2 works
+/// without quotes), and then checked by the reader like a value in the file.
 ProblemSpec parse_problem(std::string_view toml_text, const std::string& source,
                           std::span<const std::string> overrides = {});
 
@@ -121,9 +123,12 @@ ProblemSpec load_problem(const std::filesystem::path& file,
 std::string_view default_problem_toml();
 
 /// The resolved problem as JSON (written into summary.json) and as TOML (a file that
-/// reproduces the run). Matrices: a diagonal with equal entries is written as one number, another
+/// reproduces the run: parse_problem(to_toml(p)) equals p field by field). Both iterate the schema
+/// (io/problem_schema.hpp, ProblemField::write), so every field is written; to_toml is the TOML
+/// form of to_json. Matrices: a diagonal with equal entries is written as one number, another
 /// diagonal as an array of d numbers, a dense matrix as d rows. Initial data given as formulas
-/// is written as the formulas, a constant vector (d ≥ 2) as one number.
+/// is written as the formulas, a constant vector (d ≥ 2) as one number. Alternative spellings
+/// (damping_order, time.step) are written as alpha and steps.
 nlohmann::json to_json(const ProblemSpec& spec);
 std::string to_toml(const ProblemSpec& spec);
 

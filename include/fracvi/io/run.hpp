@@ -9,6 +9,7 @@
 #include "fracvi/analysis/convergence.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/io/problem_file.hpp"
+#include "fracvi/lagrangian/bvp.hpp"
 
 namespace fracvi {
 
@@ -27,6 +28,19 @@ struct PreparedRun {
 /// forward, a scheme that does not apply or a step beyond its stability bound, or a model/option
 /// rule.
 PreparedRun prepare_run(ProblemSpec spec);
+
+/// A validated boundary value problem (`fracvi bvp`, Python's fracvi.solve_bvp) with its options.
+struct PreparedBvp {
+  ProblemSpec spec;
+  BoundaryValueProblem problem;
+  BvpOptions options;
+};
+
+/// Builds the boundary value problem of `spec` (make_boundary_value_problem: [boundary] required,
+/// Δ^α_± of `[method] scheme`, the Lagrangian checked at the starting iterate) and its options
+/// (make_bvp_options). Every failure is a ProblemFileError with one line "<source>: <what>": no
+/// [boundary], a scheme without a boundary value form, a malformed formula, a model rule.
+PreparedBvp prepare_bvp(ProblemSpec spec);
 
 /// The convergence study (fracvi/analysis/convergence.hpp) of `spec`: runs it (prepare_run, every
 /// step stored, without the mirror run) with each step count (ascending) and measures the error
