@@ -306,11 +306,20 @@ std::string RungeKuttaCq::describe() const {
   std::string o = std::to_string(order);
   o.erase(o.find_last_not_of('0') + 1);
   if (!o.empty() && o.back() == '.') o.pop_back();
-  return lobatto_iiic(stages).name + " RKCQ of order " + o;
+  std::string text = lobatto_iiic(stages).name + " RKCQ of order " + o;
+  if (lag != 0) text += " from lag " + std::to_string(lag);
+  return text;
 }
 
 BlockWeights RungeKuttaCq::weights(std::size_t count) const {
   validate();
+  if (lag != 0) {
+    // The plain weights W_0 … W_{lag+count−1}, the first `lag` blocks dropped.
+    const BlockWeights plain = RungeKuttaCq{stages, order}.weights(count + lag);
+    BlockWeights out(stages, count);
+    for (std::size_t j = 0; j < count; ++j) out[j] = plain[j + lag];
+    return out;
+  }
   BlockWeights out(stages, count);
   if (is_local()) {
     integer_weights(*this, out);
@@ -330,21 +339,22 @@ BlockWeights RungeKuttaCq::weights(std::size_t count) const {
   return out;
 }
 
-Eigen::MatrixXd RungeKuttaCq::weight(std::size_t lag) const {
+Eigen::MatrixXd RungeKuttaCq::weight(std::size_t j) const {
   validate();
+  if (lag != 0) return RungeKuttaCq{stages, order}.weight(j + lag);
   if (is_local()) {
-    if (lag > 2) return Eigen::MatrixXd::Zero(stages, stages);
-    return Eigen::MatrixXd(weights(lag + 1)[lag]);
+    if (j > 2) return Eigen::MatrixXd::Zero(stages, stages);
+    return Eigen::MatrixXd(weights(j + 1)[j]);
   }
-  if (lag < 2) {
+  if (j < 2) {
     const auto [w0, w1] = first_two(*this);
-    return lag == 0 ? w0 : w1;
+    return j == 0 ? w0 : w1;
   }
   const NodeFactory factory(stages, order, weight_step(order));
-  const std::vector<Node> nodes = factory.nodes(lag, lag, kWeightTruncation);
+  const std::vector<Node> nodes = factory.nodes(j, j, kWeightTruncation);
   Eigen::MatrixXd w(stages, stages);
-  accumulate(nodes, lag,
-             std::log(kWeightTruncation) + std::log(factory.step()) + factory.log_size(lag), w);
+  accumulate(nodes, j, std::log(kWeightTruncation) + std::log(factory.step()) + factory.log_size(j),
+             w);
   return w;
 }
 

@@ -93,6 +93,10 @@ class BlockWeights {
 struct RungeKuttaCq {
   int stages = 2;      ///< s ∈ {2, 3, 4}
   double order = 1.0;  ///< β ∈ [0, 2] (the damping sum of the mechanical schemes uses β = 2α)
+  /// The first `lag` blocks are left out: weights(count)[j] = W_{j+lag}, weight(j) = W_{j+lag}
+  /// (as ConvolutionQuadrature::lag). A scheme whose W_0 acts on the unknown stage values (and
+  /// sits in Newton's matrix) keeps the known blocks in a block history with lag 1.
+  std::size_t lag = 0;
 
   /// Throws std::invalid_argument unless stages ∈ {2, 3, 4} and 0 ≤ order ≤ 2 (finite).
   void validate() const;
@@ -100,17 +104,17 @@ struct RungeKuttaCq {
   /// Δ(ζ) = A^{−1} − (ζ/b_1) e_1 e_sᵀ (see the top of this header).
   [[nodiscard]] Eigen::MatrixXd delta(double zeta) const;
 
-  /// W_0 … W_{count−1}. Integer orders exactly (up to the rounding of A^{−1}); otherwise every
-  /// entry to a few ulps (measured ≤ 5.3e-15 relative for lags up to 10^7 against 50-digit
+  /// W_lag … W_{lag+count−1}. Integer orders exactly (up to the rounding of A^{−1}); otherwise
+  /// every entry to a few ulps (measured ≤ 5.3e-15 relative for lags up to 10^7 against 50-digit
   /// references, docs/theory/rkcq_weights.md). Cost ≈ 0.04 s per 10^4 blocks, 0.4 s per 10^5.
   [[nodiscard]] BlockWeights weights(std::size_t count) const;
-  /// W_lag alone (any lag; cost independent of the lag: ≈ 10^{−4} s).
-  [[nodiscard]] Eigen::MatrixXd weight(std::size_t lag) const;
+  /// W_{j+lag} alone (any j; cost independent of j: ≈ 10^{−4} s).
+  [[nodiscard]] Eigen::MatrixXd weight(std::size_t j) const;
 
   /// True for integer orders (0, 1, 2): the weights terminate after order + 1 blocks.
   [[nodiscard]] bool is_local() const;
 
-  /// e.g. "Lobatto IIIC (s = 3) RKCQ of order 1.5".
+  /// e.g. "Lobatto IIIC (s = 3) RKCQ of order 1.5", "… of order 1.5 from lag 1".
   [[nodiscard]] std::string describe() const;
 
   friend bool operator==(const RungeKuttaCq&, const RungeKuttaCq&) = default;
