@@ -317,12 +317,16 @@ std::unique_ptr<BlockHistory> make_fast_block_history(const RungeKuttaCq& quadra
 }
 
 bool fast_block_history_pays(std::size_t capacity, Eigen::Index dimension, int stages) {
-  // Multiply–adds: direct run N²·d·s²/2; fast run N·d·(K(2s + 1) + n0·s²) with K ≈ 50, n0 = 16,
-  // plus the fit (≈ 0.05–0.5 s, counted as 3·10^8).
+  // Measured (docs/theory/fast_history.md, "Block history"; whole runs of push + sum, the fit
+  // included, s = 2 … 4, β = 0.5): at d = 1 the two are even near N = 4096 (direct 0.06–0.15 s,
+  // fast 0.06–0.17 s); at d = 100 the fast one wins from N = 1024 (0.02–0.03 s against
+  // 0.04–0.16 s). Model in multiply–adds: direct run N²·d·s²/2 against the fast run
+  // N·d·(K(2s + 1) + n0·s²), K ≈ 50, plus the fit counted as 10^8.
+  if (capacity >= kBlockFastHistoryCrossover) return true;
   const auto n = static_cast<double>(capacity), d = static_cast<double>(dimension);
   const auto s = static_cast<double>(stages);
   const double direct = 0.5 * n * n * d * s * s;
-  const double fast = n * d * (50.0 * (2.0 * s + 1.0) + 16.0 * s * s) + 3e8;
+  const double fast = n * d * (50.0 * (2.0 * s + 1.0) + 16.0 * s * s) + 1e8;
   return direct > fast;
 }
 

@@ -331,6 +331,8 @@ TEST(BlockHistory, FactoryAndArguments) {
       nullptr);
   EXPECT_FALSE(fast_block_history_pays(1000, 1, 3));
   EXPECT_TRUE(fast_block_history_pays(100'000, 1, 2));
+  EXPECT_TRUE(fast_block_history_pays(kBlockFastHistoryCrossover, 1, 2));
+  EXPECT_TRUE(fast_block_history_pays(1024, 100, 2));  // measured 0.016 s fast vs 0.038 s direct
   EXPECT_THROW(make_block_history(HistoryKind::kAuto, RungeKuttaCq{5, 0.5}, 1, 10),
                std::invalid_argument);
   EXPECT_THROW(make_block_history(HistoryKind::kAuto, q, 0, 10), std::invalid_argument);

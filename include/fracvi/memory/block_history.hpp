@@ -159,8 +159,13 @@ std::unique_ptr<BlockHistory> make_fast_block_history(const RungeKuttaCq& quadra
                                                       Eigen::Index dimension, std::size_t capacity,
                                                       double tolerance = 1e-10);
 
-/// HistoryKind::kAuto's choice for a non-integer order: the fast block history when the estimated
-/// direct run (N²·d·s²/2 multiply–adds) costs more than the fast one plus its fit (see
+/// Capacity from which HistoryKind::kAuto picks FastBlockHistory for non-integer orders whatever
+/// d (measured: at d = 1 direct and fast whole runs, fit included, are even near N = 4096).
+inline constexpr std::size_t kBlockFastHistoryCrossover = 4096;
+
+/// HistoryKind::kAuto's choice for a non-integer order: the fast block history from
+/// kBlockFastHistoryCrossover pushes, and earlier when the estimated direct run (N²·d·s²/2
+/// multiply–adds) costs more than the fast one plus its fit (large d; see
 /// docs/theory/fast_history.md, "Block history").
 bool fast_block_history_pays(std::size_t capacity, Eigen::Index dimension, int stages);
 
