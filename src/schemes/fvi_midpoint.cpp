@@ -402,7 +402,7 @@ const SchemeInfo kFviMidpoint{
     .variational_quadrature = std::nullopt,  // its Δ^α_± act on midpoint values: no BVP form yet
     .has_mirror = true,
     .exact_balance = true,
-    .fast_history = false,  // the fits cover GL and BDF2 weights without a lag (docs/schemes.md)
+    .fast_history = true,  // both memory sums are GL sums (orders 2α and 1 − 2α, lag 1)
     .momentum_quadrature = CqScheme::kTrapezoidal,
     .applies_to = "0 <= 2alpha < 2",
     .stability_rule =
