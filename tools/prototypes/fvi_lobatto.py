@@ -216,7 +216,7 @@ class Problem:
     def taylor_force(self, t):
         """D^β P at the times t (closed form), shape (len(t), d)."""
         b = self.beta
-        tau = (t - self.t0)[:, None]
+        tau = np.maximum(t - self.t0, 0.0)[:, None]   # a + b − t may round below t0
         out = np.zeros((len(t), len(self.x0)))
         if b == 0:
             return out
@@ -642,7 +642,21 @@ def gradient_check():
             # variables: (interval, stage) for internal stages, (node) for nodes 1..N−1
             variables = [("stage", n, i) for n in range(N) for i in range(1, s - 1)] + \
                         [("node", k, None) for k in range(1, N)]
-            worst, scale = 0.0, 0.0
+            # negative control: the y-memory with W_j in place of J W_j J (the mirror symmetry
+            # W_jᵀB = J B W_j J is what makes the y-variation collapse onto W^{(β)})
+            Fy_bad = []
+            for m in range(N):
+                G = sch.h ** (-beta) * sum(sch.W[l - m] @ Yt[l] for l in range(m, N))
+                Gg = sch.h ** (-beta) * sum(J @ sch.W[l - m] @ J @ Yt[l] for l in range(m, N))
+                Fy_bad.append(-sch.h * sch.b[:, None] * ((G - Gg) @ R.T))
+
+            def Fy_ctl_delta(var, comp):
+                kind, n, i = var
+                if kind == "stage":
+                    return -Fy_bad[n][i, comp]
+                return -(Fy_bad[n - 1][s - 1, comp] + Fy_bad[n][0, comp])
+
+            worst, scale, control = 0.0, 0.0, 0.0
             with mp.workdps(40):
                 Xm = [mp.matrix(x.tolist()) for x in X]
                 Ym = [mp.matrix(y.tolist()) for y in Y]
@@ -669,11 +683,16 @@ def gradient_check():
                         else:
                             e = Fx[n - 1][s - 1, comp] + Fx[n][0, comp] + \
                                 Fy[n - 1][s - 1, comp] + Fy[n][0, comp]
+                        ctl = e - Fy_ctl_delta(var, comp)
+                        if not (math.isfinite(e) and math.isfinite(float(fd))):
+                            raise RuntimeError("non-finite equation or gradient")
                         worst = max(worst, abs(float(fd) - e))
+                        control = max(control, abs(float(fd) - ctl))
                         scale = max(scale, abs(e))
             # negative control: the y-memory with W_j instead of J W_j J
             print(f"  s = {s}, β = {beta}: max |∂A/∂η − (E^x + E^y)| = {worst:.1e} "
-                  f"(largest term {scale:.1e})")
+                  f"(largest term {scale:.1e}; control W_j for J W_j J in the y-memory: "
+                  f"{control:.1e})")
 
 
 def mirror_check():
@@ -761,6 +780,117 @@ def orders_caputo():
                   + "  orders " + ", ".join(f"{o:.2f}" for o in ords))
 
 
+
+# ---------------------------------------------------------------------------------------------
+# Stability on the scalar test problem m x'' + r D^β x + k x = 0 through the characteristic
+# function (docs/theory/fvi_lobatto.md §8): scaled parameters ρ = (r/m) h^{2−β}, κ = (k/m) h².
+# ---------------------------------------------------------------------------------------------
+
+
+def delta_power(s, beta, zeta):
+    """Δ(ζ)^β (principal power through an eigendecomposition; complex ζ, |ζ| < 1)."""
+    A, b, _ = lobatto_iiic(s)
+    D1 = np.zeros((s, s))
+    D1[0, s - 1] = -1.0 / b[0]
+    Dz = np.linalg.inv(A) + zeta * D1
+    lam, V = np.linalg.eig(Dz)
+    return V @ np.diag(lam.astype(complex) ** beta) @ np.linalg.inv(V)
+
+
+def characteristic(s, beta, rho, kappa, zeta, limit=False):
+    """det 𝒜(ζ): rows (e_1 + ζe_s)ᵀT(ζ) (node), e_kᵀT(ζ) (internal stages), (e_1 − ζe_s)ᵀ (the
+    shared node), T(ζ) = DᵀBD − κB − ρBΔ(ζ)^β (limit: T = BΔ(ζ)^β, the ρ → ∞ limit)."""
+    A, b, c = lobatto_iiic(s)
+    D = differentiation_matrix(c)
+    B = np.diag(b)
+    if limit:
+        T = B @ delta_power(s, beta, zeta)
+    else:
+        T = D.T @ B @ D - kappa * B - rho * B @ (delta_power(s, beta, zeta) if beta != 0
+                                                 else np.eye(s))
+    e1, es = np.eye(s)[0], np.eye(s)[s - 1]
+    rows = [(e1 + zeta * es) @ T] + [T[k] for k in range(1, s - 1)] + [e1 - zeta * es]
+    return np.linalg.det(np.array(rows))
+
+
+def unstable_roots(s, beta, rho, kappa, limit=False, r0=0.995, n=3000):
+    """Number of zeros of det 𝒜 in |ζ| < r0 (argument principle): the growing modes."""
+    th = 2 * np.pi * (np.arange(n) + 0.5) / n
+    v = np.array([characteristic(s, beta, rho, kappa, r0 * np.exp(1j * x), limit) for x in th])
+    ph = np.unwrap(np.angle(v))
+    w = (ph[-1] - ph[0] + np.angle(v[0] / v[-1])) / (2 * np.pi)
+    return int(round(w))
+
+
+def rho_threshold(s, beta, kappa, lo=1e-3, hi=1e8):
+    """The largest ρ = (r/m) h^{2−β} with no growing mode (bisection in log ρ; None if stable up
+    to hi)."""
+    if unstable_roots(s, beta, hi, kappa) == 0:
+        return None
+    if unstable_roots(s, beta, lo, kappa) != 0:
+        return 0.0
+    for _ in range(30):
+        mid = math.sqrt(lo * hi)
+        if unstable_roots(s, beta, mid, kappa) == 0:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def stability_theory():
+    print("undamped stability interval κ* = (ω h)² (ρ = 0): ")
+    for s in (2, 3, 4):
+        lo, hi = 0.1, 1e3
+        for _ in range(40):
+            mid = math.sqrt(lo * hi)
+            if unstable_roots(s, 1.0, 0.0, mid) == 0:
+                lo = mid
+            else:
+                hi = mid
+        print(f"  s = {s}: κ* = {lo:.4f}  (ωh < {math.sqrt(lo):.4f})")
+    print("ρ → ∞ limit: growing modes of det[(e_1+ζe_s)ᵀBΔ^β; e_kᵀBΔ^β; (e_1−ζe_s)ᵀ] in |ζ| < 1:")
+    for s in (2, 3, 4):
+        print(f"  s = {s}: " + ", ".join(f"β={b}: {unstable_roots(s, b, 0, 0, limit=True)}"
+                                        for b in (0.1, 0.3, 0.5, 0.7, 0.9, 0.99, 1.0, 1.01, 1.3,
+                                                  1.5, 1.7, 1.9)))
+    print("largest stable ρ = (r/m) h^{2−β} for κ = (k/m) h² = 1e-4, 0.1, 1:")
+    for s in (2, 3, 4):
+        for beta in (0.1, 0.25, 0.5, 0.75, 0.9):
+            th = [rho_threshold(s, beta, k) for k in (1e-4, 0.1, 1.0)]
+            print(f"  s = {s}, β = {beta}: " + ", ".join("none" if x is None else f"{x:.4g}"
+                                                      for x in th), flush=True)
+    print("β ≥ 1: growing modes over ρ ∈ {1e-3 … 1e8} × κ ∈ {1e-4, 0.1, 1}:")
+    for s in (2, 3, 4):
+        for beta in (1.0, 1.25, 1.5, 1.75, 1.95):
+            bad = [(r, k) for r in (1e-3, 1e-1, 1, 10, 1e2, 1e4, 1e6, 1e8)
+                   for k in (1e-4, 0.1, 1.0) if unstable_roots(s, beta, r, k) != 0]
+            print(f"  s = {s}, β = {beta}: unstable points {bad}", flush=True)
+
+def stability_threshold_runs(steps=3000):
+    """Time-stepping check of the thresholds of stability_theory(): ρ = 0.9ρ* and 1.1ρ*."""
+    print(f"threshold check by time stepping (m = k = 1, x0 = 1, v0 = 0, {steps} steps):")
+    cases = [(2, 0.5, 0.01, 4.915), (3, 0.5, 0.01, 19.52), (4, 0.5, 0.01, 46.49),
+             (2, 0.9, 0.01, 18.14), (4, 0.25, 0.01, 55.01)]
+    for s, beta, h, rs in cases:
+        for f in (0.9, 1.1):
+            r = f * rs / h ** (2 - beta)
+            g, H, U = quadratic([[1.0]])
+            pb = Problem([[1.0]], [[r]], beta, g, H, [1.0], [0.0], 0.0, h * steps, pot=U)
+            with np.errstate(all="ignore"):
+                sch = LobattoFvi(pb, s, steps).run()
+            print(f"  s = {s}, β = {beta}, h = {h}, ρ = {f}ρ* (r = {r:.4g}): "
+                  f"max|x_k| = {np.abs(sch.xs).max():.3e}", flush=True)
+    print("undamped (r = 0), h = 1, k = 0.98κ* and 1.02κ*:")
+    for s, ks in ((2, 4.0), (3, 8.0), (4, 30.0)):
+        for f in (0.98, 1.02):
+            g, H, U = quadratic([[f * ks]])
+            pb = Problem([[1.0]], [[0.0]], 1.0, g, H, [1.0], [0.0], 0.0, float(steps), pot=U)
+            with np.errstate(all="ignore"):
+                sch = LobattoFvi(pb, s, steps).run()
+            print(f"  s = {s}, κ = {f}κ*: max|x_k| = {np.abs(sch.xs).max():.3e}", flush=True)
+
+
 if __name__ == "__main__":
     what = sys.argv[1] if len(sys.argv) > 1 else "all"
     t = time.time()
@@ -778,4 +908,8 @@ if __name__ == "__main__":
         orders_caputo()
     if what in ("stability", "all"):
         stability_grid()
+    if what in ("thresholds", "all"):
+        stability_threshold_runs()
+    if what == "stability-theory":   # ≈ 7 min, not part of "all"
+        stability_theory()
     print(f"({time.time() - t:.0f} s)")
