@@ -886,33 +886,44 @@ def unstable_roots(s, beta, rho, kappa, limit=False, r0=0.995, n=3000):
     return int(round(w))
 
 
-def rho_threshold(s, beta, kappa, lo=1e-3, hi=1e8):
-    """The largest ρ = (r/m) h^{2−β} with no growing mode (bisection in log ρ; None if stable up
-    to hi)."""
-    if unstable_roots(s, beta, hi, kappa) == 0:
-        return None
-    if unstable_roots(s, beta, lo, kappa) != 0:
-        return 0.0
-    for _ in range(30):
-        mid = math.sqrt(lo * hi)
-        if unstable_roots(s, beta, mid, kappa) == 0:
-            lo = mid
-        else:
-            hi = mid
-    return lo
+def first_instability(count, lo, hi, points=48, bisections=24):
+    """The first parameter value in [lo, hi] at which count(·) > 0 (growing modes): a geometric
+    scan (points values) followed by bisection of the first stable → unstable transition. The
+    stable sets are not intervals (Lobatto IIIA–IIIB has instability windows, e.g. s = 4 is
+    unstable for 26 ≲ ρ ≲ 45 at β = 0.1 and stable again up to 65), so a plain bisection over
+    [lo, hi] can return a later edge. Returns None if no growing mode was found on the scan,
+    0.0 if unstable at lo."""
+    grid = np.geomspace(lo, hi, points)
+    prev = None
+    for x in grid:
+        if count(x) > 0:
+            if prev is None:
+                return 0.0
+            a, b = prev, x
+            for _ in range(bisections):
+                m = math.sqrt(a * b)
+                if count(m) > 0:
+                    b = m
+                else:
+                    a = m
+            return a
+        prev = x
+    return None
+
+
+def rho_threshold(s, beta, kappa, lo=1e-2, hi=1e6):
+    """The first ρ = (r/m) h^{2−β} with a growing mode (None if stable up to hi)."""
+    return first_instability(lambda r: unstable_roots(s, beta, r, kappa, n=1500), lo, hi)
 
 
 def stability_theory():
-    print("undamped stability interval κ* = (ω h)² (ρ = 0): ")
+    print("undamped (ρ = 0): first κ = (ωh)² with a growing mode, and the stable κ on a scan:")
     for s in (2, 3, 4):
-        lo, hi = 0.1, 1e3
-        for _ in range(40):
-            mid = math.sqrt(lo * hi)
-            if unstable_roots(s, 1.0, 0.0, mid) == 0:
-                lo = mid
-            else:
-                hi = mid
-        print(f"  s = {s}: κ* = {lo:.4f}  (ωh < {math.sqrt(lo):.4f})")
+        ks = first_instability(lambda k: unstable_roots(s, 1.0, 0.0, k, n=1500), 0.5, 2000.0)
+        grid = np.geomspace(0.5, 2000.0, 40)
+        stable = [k for k in grid if unstable_roots(s, 1.0, 0.0, k, n=1000) == 0]
+        print(f"  s = {s}: κ* = {ks:.4f} (ωh < {math.sqrt(ks):.4f}); stable scan points beyond κ*: "
+              + ", ".join(f"{k:.3g}" for k in stable if k > ks))
     print("ρ → ∞ limit: growing modes of det[(e_1+ζe_s)ᵀBΔ^β; e_kᵀBΔ^β; (e_1−ζe_s)ᵀ] in |ζ| < 1:")
     for s in (2, 3, 4):
         print(f"  s = {s}: " + ", ".join(f"β={b}: {unstable_roots(s, b, 0, 0, limit=True)}"
@@ -924,12 +935,38 @@ def stability_theory():
             th = [rho_threshold(s, beta, k) for k in (1e-4, 0.1, 1.0)]
             print(f"  s = {s}, β = {beta}: " + ", ".join("none" if x is None else f"{x:.4g}"
                                                       for x in th), flush=True)
-    print("β ≥ 1: growing modes over ρ ∈ {1e-3 … 1e8} × κ ∈ {1e-4, 0.1, 1}:")
+    kst = {2: 4.0, 3: 8.0, 4: 30.0}
+    print("β ≥ 1: growing modes over ρ ∈ {1e-3 … 1e8} × κ ∈ {1e-4, 0.1, 1, 0.5κ*, 0.9κ*, 0.99κ*}:")
     for s in (2, 3, 4):
         for beta in (1.0, 1.25, 1.5, 1.75, 1.95):
             bad = [(r, k) for r in (1e-3, 1e-1, 1, 10, 1e2, 1e4, 1e6, 1e8)
-                   for k in (1e-4, 0.1, 1.0) if unstable_roots(s, beta, r, k) != 0]
+                   for k in (1e-4, 0.1, 1.0, 0.5 * kst[s], 0.9 * kst[s], 0.99 * kst[s])
+                   if unstable_roots(s, beta, r, k, n=1500) != 0]
             print(f"  s = {s}, β = {beta}: unstable points {bad}", flush=True)
+    print("beyond κ*: growing modes at κ = 1.2κ*, 10κ* and ρ = 0.01, 1, 100, 1e4 (1 = unstable):")
+    for s in (2, 3, 4):
+        for beta in (1.0, 1.5):
+            row = [(k, r, unstable_roots(s, beta, r, k * kst[s], n=1500))
+                   for k in (1.2, 10) for r in (0.01, 1, 100, 1e4)]
+            print(f"  s = {s}, β = {beta}: " + ", ".join(f"({k}κ*, ρ={r:g}): {u}"
+                                                      for k, r, u in row), flush=True)
+    print("the root inside the disc in the ρ → ∞ limit (growth factor 1/|ζ*| per step):")
+    for s in (2, 3, 4):
+        out = []
+        for beta in (0.1, 0.5, 0.9):
+            f = lambda z: characteristic(s, beta, 0, 0, z, limit=True)
+            grid = [(abs(f(r * np.exp(1j * th))), r * np.exp(1j * th))
+                    for r in np.linspace(0.01, 0.99, 50) for th in np.linspace(0, 2 * np.pi, 181)]
+            z0 = min(grid, key=lambda v: v[0])[1]
+            z1 = z0 * 1.001 + 1e-4
+            for _ in range(60):
+                f0, f1 = f(z0), f(z1)
+                if f1 == f0 or abs(z1 - z0) < 1e-14:
+                    break
+                z0, z1 = z1, z1 - f1 * (z1 - z0) / (f1 - f0)
+            out.append(f"β={beta}: ζ* = {z1.real:+.4f}{z1.imag:+.1e}i")
+        print(f"  s = {s}: " + ", ".join(out))
+
 
 def stability_threshold_runs(steps=3000):
     """Time-stepping check of the thresholds of stability_theory(): ρ = 0.9ρ* and 1.1ρ*."""
