@@ -1003,8 +1003,11 @@ def stability_theory():
 def stability_threshold_runs(steps=3000):
     """Time-stepping check of the thresholds of stability_theory(): ρ = 0.9ρ* and 1.1ρ*."""
     print(f"threshold check by time stepping (m = k = 1, x0 = 1, v0 = 0, {steps} steps):")
+    # ρ* at κ = 1e-4 from stability_theory(); s = 3 and 4 at β = 0.1 are the lower edges of
+    # instability windows (stable again above them: 9.8 … and 45 … 65)
     cases = [(2, 0.5, 0.01, 4.915), (3, 0.5, 0.01, 19.52), (4, 0.5, 0.01, 46.49),
-             (2, 0.9, 0.01, 18.14), (4, 0.25, 0.01, 55.01)]
+             (2, 0.9, 0.01, 18.14), (4, 0.25, 0.01, 55.01), (3, 0.1, 0.01, 7.9),
+             (4, 0.1, 0.01, 26.91)]
     for s, beta, h, rs in cases:
         for f in (0.9, 1.1):
             r = f * rs / h ** (2 - beta)
@@ -1014,6 +1017,16 @@ def stability_threshold_runs(steps=3000):
                 sch = LobattoFvi(pb, s, steps).run()
             print(f"  s = {s}, β = {beta}, h = {h}, ρ = {f}ρ* (r = {r:.4g}): "
                   f"max|x_k| = {np.abs(sch.xs).max():.3e}", flush=True)
+    print("windows: s = 3, β = 0.1, ρ = 12 and s = 4, β = 0.1, ρ = 55 (stable by the count):")
+    for s, beta, rho in ((3, 0.1, 12.0), (4, 0.1, 55.0)):
+        h = 0.01
+        r = rho / h ** (2 - beta)
+        g, H, U = quadratic([[1.0]])
+        pb = Problem([[1.0]], [[r]], beta, g, H, [1.0], [0.0], 0.0, h * steps, pot=U)
+        with np.errstate(all="ignore"):
+            sch = LobattoFvi(pb, s, steps).run()
+        print(f"  s = {s}, β = {beta}, ρ = {rho}: max|x_k| = {np.abs(sch.xs).max():.3e}",
+              flush=True)
     print("undamped (r = 0), h = 1, k = 0.98κ* and 1.02κ*:")
     for s, ks in ((2, 4.0), (3, 8.0), (4, 30.0)):
         for f in (0.98, 1.02):
