@@ -141,10 +141,13 @@ void validate(const ExponentialFitOptions& o, std::size_t window) {
         "(−1)^m m^{β−1} (branch point of (1 + ζ)^{−β} at ζ = −1); see "
         "docs/theory/fast_history.md");
   }
-  if (!std::isfinite(o.order) || !(o.order > 0.0) || !(o.order < 2.0) || is_integer(o.order)) {
-    fail("order = " + std::to_string(o.order) +
-         " must be non-integer in (0, 2) (integer orders have finitely many weights: use "
-         "LocalHistory)");
+  // GL: the representation c_m = −(sin πβ/π) ∫ e^{−(m−β)s}(1 − e^{−s})^β ds holds for β > −1
+  // (integrable at s = 0); BDF2's is used for 0 < β < 2 only.
+  const double lowest = o.scheme == CqScheme::kGrunwaldLetnikov ? -1.0 : 0.0;
+  if (!std::isfinite(o.order) || !(o.order > lowest) || !(o.order < 2.0) || is_integer(o.order)) {
+    fail("order = " + std::to_string(o.order) + " must be non-integer in (" +
+         (o.scheme == CqScheme::kGrunwaldLetnikov ? "-1" : "0") +
+         ", 2) (integer orders >= 0 have finitely many weights: use LocalHistory)");
   }
   if (!(o.tolerance >= kMinFitTolerance) || !(o.tolerance <= kMaxFitTolerance)) {
     fail("tolerance = " + std::to_string(o.tolerance) + " must be in [1e-13, 1e-3]");
@@ -211,30 +214,36 @@ double cq_weight(CqScheme scheme, double order, std::size_t m) {
 
 ExponentialFit fit_exponentials(const ExponentialFitOptions& options) {
   const auto start = std::chrono::steady_clock::now();
-  const std::size_t window =
+  const std::size_t lagged_window =
       options.window == 0 ? default_fit_window(options.scheme) : options.window;
-  validate(options, window);
+  validate(options, lagged_window);
   const double beta = options.order;
   const double eps = options.tolerance;
+  // A lagged fit (weights c_{m+lag}) is the fit of the plain weights with the window n0 + lag and
+  // lags up to max_lag + lag: below, `window` and the lags index the plain sequence; the shift
+  // m − window of the tail is the same in both indexings.
+  const std::size_t window = lagged_window + options.lag;
+  const std::size_t max_lag = options.max_lag + options.lag;
 
   ExponentialFit fit;
   fit.scheme = options.scheme;
   fit.order = beta;
   fit.tolerance = eps;
   fit.max_lag = options.max_lag;
-  fit.window = window;
+  fit.window = lagged_window;
+  fit.lag = options.lag;
   fit.head = cq_weights(options.scheme, beta, window);
+  fit.head.erase(fit.head.begin(), fit.head.begin() + static_cast<std::ptrdiff_t>(options.lag));
   const auto finish = [&]() {
     fit.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return fit;
   };
-  if (options.max_lag < window) return finish();  // every lag is in the exact window
+  if (max_lag < window) return finish();  // every lag is in the exact window
 
   // Exact weights at the least-squares rows and at the verification lags.
-  const std::vector<std::size_t> fit_lags =
-      sample_lags(window, options.max_lag, kFitDense, kFitPerDecade);
+  const std::vector<std::size_t> fit_lags = sample_lags(window, max_lag, kFitDense, kFitPerDecade);
   const std::vector<std::size_t> check_lags =
-      sample_lags(window, options.max_lag, kVerifyDense, kVerifyPerDecade);
+      sample_lags(window, max_lag, kVerifyDense, kVerifyPerDecade);
   const auto rows = static_cast<Eigen::Index>(fit_lags.size());
   const auto checks = static_cast<Eigen::Index>(check_lags.size());
   Eigen::VectorXd c_fit(rows), c_check(checks);
@@ -367,7 +376,7 @@ ExponentialFit fit_exponentials(const ExponentialFitOptions& options) {
 
 namespace {
 
-using CacheKey = std::tuple<int, double, double, std::size_t, std::size_t, bool>;
+using CacheKey = std::tuple<int, double, double, std::size_t, std::size_t, std::size_t, bool>;
 
 struct FitCache {
   std::mutex mutex;
@@ -391,6 +400,7 @@ std::shared_ptr<const ExponentialFit> shared_exponential_fit(const ExponentialFi
                      resolved.tolerance,
                      resolved.max_lag,
                      resolved.window,
+                     resolved.lag,
                      resolved.compress};
   FitCache& cache = fit_cache();
   {

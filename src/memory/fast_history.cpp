@@ -150,19 +150,20 @@ bool fast_history_pays(std::size_t capacity, Eigen::Index dimension) {
   return 0.5 * n * n * d > 100.0 * n * d + 2e7;
 }
 
-std::unique_ptr<History> make_fast_history(double order, Eigen::Index dimension,
-                                           std::size_t capacity, double tolerance,
-                                           CqScheme scheme) {
-  if (scheme == CqScheme::kGrunwaldLetnikov) {
-    return std::make_unique<FastHistory>(order, dimension, capacity, tolerance);
+std::unique_ptr<History> make_fast_history(const ConvolutionQuadrature& quadrature,
+                                           Eigen::Index dimension, std::size_t capacity,
+                                           double tolerance) {
+  if (quadrature.scheme == CqScheme::kGrunwaldLetnikov && quadrature.lag == 0) {
+    return std::make_unique<FastHistory>(quadrature.order, dimension, capacity, tolerance);
   }
   if (dimension < 1 || capacity < 1) {
     throw std::invalid_argument("make_fast_history: dimension = " + std::to_string(dimension) +
                                 " and capacity = " + std::to_string(capacity) + " must be >= 1");
   }
   ExponentialFitOptions options;
-  options.scheme = scheme;
-  options.order = order;
+  options.scheme = quadrature.scheme;
+  options.order = quadrature.order;
+  options.lag = quadrature.lag;
   options.tolerance = tolerance;
   options.max_lag = fast_history_fit_lag(capacity);
   return std::make_unique<FastHistory>(shared_exponential_fit(options), dimension, capacity);

@@ -114,11 +114,13 @@ std::unique_ptr<History> make_history(HistoryKind kind, const ConvolutionQuadrat
   if (kind != HistoryKind::kDirect && quadrature.is_local()) {
     return std::make_unique<LocalHistory>(quadrature, dimension);
   }
-  // Fits exist for the GL and BDF2 weights of orders 0 < β < 2 without a lag
-  // (exponential_fit.hpp); every other quadrature is summed directly, and asking for a fast
-  // history of it is an error.
-  const bool fit_exists = quadrature.scheme != CqScheme::kTrapezoidal && quadrature.lag == 0 &&
-                          quadrature.order > 0.0 && quadrature.order < 2.0;
+  // Fits exist for the non-integer GL weights of orders −1 < β < 2 and BDF2 weights of orders
+  // 0 < β < 2, with any lag (exponential_fit.hpp); every other non-local quadrature is summed
+  // directly, and asking for a fast history of it is an error.
+  const double lowest = quadrature.scheme == CqScheme::kGrunwaldLetnikov ? -1.0 : 0.0;
+  const bool fit_exists = quadrature.scheme != CqScheme::kTrapezoidal &&
+                          quadrature.order != std::round(quadrature.order) &&
+                          quadrature.order > lowest && quadrature.order < 2.0;
   if (kind == HistoryKind::kFast && !fit_exists) {
     throw std::invalid_argument("method.history = \"fast\" is not available for the " +
                                 quadrature.describe() +
@@ -127,7 +129,7 @@ std::unique_ptr<History> make_history(HistoryKind kind, const ConvolutionQuadrat
   }
   if (kind == HistoryKind::kFast ||
       (kind == HistoryKind::kAuto && fit_exists && fast_history_pays(capacity, dimension))) {
-    return make_fast_history(quadrature.order, dimension, capacity, tolerance, quadrature.scheme);
+    return make_fast_history(quadrature, dimension, capacity, tolerance);
   }
   return std::make_unique<DirectHistory>(quadrature, dimension, capacity);
 }

@@ -1,5 +1,7 @@
 #include "cq_midpoint_stepper.hpp"
 
+#include "mirror_run.hpp"
+
 #include <boost/math/special_functions/gamma.hpp>
 #include <cmath>
 #include <limits>
@@ -242,87 +244,45 @@ Status CqMidpointStepper::advance() {
   return Status::kSuccess;
 }
 
-// The y-equation, solved backwards from y_N = x_0, y_{N−1} = x_1 for y_{k−1}, k = N−1 … 1, in its
-// literal second-difference form (not the momentum form of the x-run), with its own
-// forward-running history: M(y_{k+1} − 2y_k + y_{k−1})/h² + R h^{−2α} Σ_{m=0}^{N−k} ω_m ỹ_{k+m}
-// + ½∇U_f(ȳ_k) + ½∇U_f(ȳ_{k−1}) = 0. U and f are evaluated at the mirrored times
-// (y_j ≈ x(a + b − t_j)); kTaylorSplit adds P's force of the mirrored cell.
+// The y-equation (mirror_run.hpp) with D_k = R h^{−2α} Σ_{m=0}^{N−k} ω_m ỹ_{k+m}, all of it known
+// (explicit memory): a forward-running history fed with ỹ_N, ỹ_{N−1}, …, ỹ_j = y_j − y_N −
+// (t_N − t_j) v_0 (the shift of the reversed clock); kTaylorSplit adds P's force of the mirrored
+// node.
 double CqMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
                                        std::span<const std::size_t> steps) const {
-  const std::size_t rows = steps.size();
-  try {
-    const std::size_t n = n_steps_;
-    if (n < 2) return 0.0;
-    MidpointNewton solver(mass_, h_, problem_.model.potential.get(), options_.newton, problem_.t0,
-                          options_.linear_solver);
+  struct Damping {
+    const CqMidpointStepper& self;
     std::unique_ptr<History> hist;
-    if (damped_) {
-      hist = make_history(options_.history, damping_sum_, d_, n + 1, options_.history_tolerance);
-      hist->set_threads(options_.threads);
-    }
-    const Eigen::Index d = d_;
-    Eigen::VectorXd y_next = problem_.x0, y_k = x_first_, y_prev(d), shifted(d), s(d), fy(d), g(d),
-                    f_tau(d), f_tau2(d), c(d), ym(d), step(d);
-    // Δ = y_{k−1} − y_k; the equation is M(Δ_k − Δ_{k+1}) + h²F_k + (h²/2)(∇U_f(ȳ_k) +
-    // ∇U_f(ȳ_{k−1})) = 0 (increments keep round-off out of the differences, as in the x-run).
-    Eigen::VectorXd delta = y_k - y_next;
-    // ỹ_j = y_j − y_N − (t_N − t_j) v_0: the shift of the reversed clock.
-    auto push = [&](const Eigen::VectorXd& y, std::size_t j) {
+    Eigen::VectorXd shifted, s;
+    std::size_t n;
+    void push(const Eigen::VectorXd& y, std::size_t j) {
       shifted = y;
-      if (shift_x0_) shifted -= problem_.x0;
-      if (shift_v0_) shifted -= (static_cast<double>(n - j) * h_) * problem_.v0;
+      if (self.shift_x0_) shifted -= self.problem_.x0;
+      if (self.shift_v0_) shifted -= (static_cast<double>(n - j) * self.h_) * self.problem_.v0;
       hist->push(shifted);
-    };
-    if (damped_) {
-      push(y_next, n);
-      push(y_k, n - 1);
     }
-    std::size_t next_row = 0;
-    double err = 0.0;
-    for (std::size_t kk = n - 1; kk >= 1; --kk) {
-      fy.setZero();
-      if (damped_) {
-        hist->sum(s);
-        if (memory_start_ == MemoryStart::kTaylorSplit) {
-          add_polynomial_force(n - kk, s);  // node kk mirrors the x-index N − kk
-        }
-        force_matrix_.multiply(s, fy);
-      }
-      // ȳ_k = (y_{k+1} + y_k)/2 mirrors x̄ at t_{N−k−½}; ȳ_{k−1} mirrors x̄ at t_{N−k+½}.
-      const double tau_known = half_time(n - kk - 1), tau_new = half_time(n - kk);
-      const Eigen::VectorXd* f_known = nullptr;
-      const Eigen::VectorXd* f_new = nullptr;
-      if (has_forcing_) {
-        problem_.model.forcing(tau_known, f_tau);
-        problem_.model.forcing(tau_new, f_tau2);
-        f_known = &f_tau;
-        f_new = &f_tau2;
-      }
-      ym = 0.5 * (y_next + y_k);
-      solver.effective_gradient(ym, tau_known, f_known, g);
-      mass_.multiply(delta, c);
-      c -= (h_ * h_) * fy;
-      c -= (0.5 * h_ * h_) * g;
-      step = delta;  // predictor
-      const NewtonReport report = solver.solve(y_k, tau_new, c, f_new, step);
-      if (report.status != Status::kSuccess) return kNaN;
-      delta = step;
-      y_prev = y_k + delta;
-      const std::size_t mirrored = n - kk + 1;  // y_{kk−1} ≈ x_{mirrored}
-      while (next_row < rows && steps[next_row] < mirrored) ++next_row;
-      if (next_row < rows && steps[next_row] == mirrored) {
-        const Eigen::Map<const Eigen::VectorXd> x_row(
-            x_rows.row(static_cast<Eigen::Index>(next_row)).data(), d);
-        err = std::max(err, (y_prev - x_row).cwiseAbs().maxCoeff());
-      }
-      if (damped_) push(y_prev, kk - 1);
-      y_next.swap(y_k);
-      y_k.swap(y_prev);
+    void start(const Eigen::VectorXd& y_n, const Eigen::VectorXd& y_n1) {
+      if (!self.damped_) return;
+      hist = make_history(self.options_.history, self.damping_sum_, self.d_, n + 1,
+                          self.options_.history_tolerance);
+      hist->set_threads(self.options_.threads);
+      push(y_n, n);
+      push(y_n1, n - 1);
     }
-    return err;
-  } catch (...) {
-    return kNaN;  // a throwing callback makes the check unavailable, not the run invalid
-  }
+    void known(std::size_t k, const Eigen::VectorXd&, Eigen::VectorXd& out) {
+      out.setZero();
+      if (!self.damped_) return;
+      hist->sum(s);
+      // Node k mirrors the x-index N − k.
+      if (self.memory_start_ == MemoryStart::kTaylorSplit) self.add_polynomial_force(n - k, s);
+      self.force_matrix_.multiply(s, out);
+    }
+    void accept(std::size_t k, const Eigen::VectorXd& y_km1, const Eigen::VectorXd&) {
+      if (self.damped_) push(y_km1, k - 1);
+    }
+  } damping{*this, nullptr, Eigen::VectorXd(d_), Eigen::VectorXd(d_), n_steps_};
+  return backward_mirror_run(problem_, options_, mass_, mass_, h_, x_first_, x_rows, steps,
+                             damping);
 }
 
 }  // namespace fracvi::internal

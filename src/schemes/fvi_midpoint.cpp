@@ -40,6 +40,7 @@
 #include "fracvi/schemes/stepper.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
 #include "mass_solver.hpp"
+#include "mirror_run.hpp"
 #include "scheme_rows.hpp"
 
 namespace fracvi::internal {
@@ -76,9 +77,10 @@ class TrapezoidalMidpointStepper final : public Stepper {
         damping_(problem.model.damping.symmetric_part()),
         force_matrix_(damping_.scaled(std::pow(h_, -beta_))),
         mass_solver_(mass_, force_matrix_, options.linear_solver),
-        newton_(damped_ ? linear_combination(mass_, 0.5 * h_ * h_ * current_weight_, force_matrix_)
-                        : mass_,
-                h_, problem.model.potential.get(), options.newton, problem.t0,
+        newton_matrix_(
+            damped_ ? linear_combination(mass_, 0.5 * h_ * h_ * current_weight_, force_matrix_)
+                    : mass_),
+        newton_(newton_matrix_, h_, problem.model.potential.get(), options.newton, problem.t0,
                 options.linear_solver) {
     const bool caputo = problem.model.convention == Convention::kCaputo;
     // x = P + x̃ for β > 0 (D^0 is the identity: nothing to split). Φ(τ) = ∫_0^τ D^β P per unit
@@ -202,6 +204,7 @@ class TrapezoidalMidpointStepper final : public Stepper {
 
   ModelMatrix mass_, damping_, force_matrix_;
   MassSolver mass_solver_;
+  ModelMatrix newton_matrix_;  // M + (h²/2) ω̂_0 R'
   MidpointNewton newton_;
   std::unique_ptr<History> difference_history_, average_history_;
 
@@ -297,93 +300,54 @@ Status TrapezoidalMidpointStepper::advance() {
   return Status::kSuccess;
 }
 
-// The y-equation, solved backwards from y_N = x_0, y_{N−1} = x_1 for y_{k−1}, k = N−1 … 1, in its
-// second-difference form with its own forward-running history over the midpoints ȳ_{N−1},
-// ȳ_{N−2}, …:
-//   M(y_{k+1} − 2y_k + y_{k−1})/h² + R h^{−β} Σ_m ω̂_m ỹ̄_{k−1+m} + Ĝ^P_k
-//     + ½∇U_f(ȳ_k) + ½∇U_f(ȳ_{k−1}) = 0,
-// U, f and P's force at the mirrored times and cells (ỹ̄_i mirrors x̃̄_{N−1−i}).
+// The y-equation (mirror_run.hpp) with D_k = R h^{−β} Σ_m ω̂_m ỹ̄_{k−1+m} + Ĝ^P_k (the node
+// average over midpoints, ỹ̄_i mirroring x̃̄_{N−1−i}), its own forward-running pair of histories
+// over ȳ_{N−1}, ȳ_{N−2}, … and P's force of the mirrored cells. The weight ω̂_0 of the unknown
+// midpoint ȳ_{k−1} = y_k + Δ/2 is in the Newton matrix, as in the x-run.
 double TrapezoidalMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
                                                 std::span<const std::size_t> steps) const {
-  const std::size_t rows = steps.size();
-  try {
-    const std::size_t n = n_steps_;
-    if (n < 2) return 0.0;
-    MidpointNewton solver(
-        damped_ ? linear_combination(mass_, 0.5 * h_ * h_ * current_weight_, force_matrix_) : mass_,
-        h_, problem_.model.potential.get(), options_.newton, problem_.t0, options_.linear_solver);
+  struct Damping {
+    const TrapezoidalMidpointStepper& self;
+    std::size_t n;
     std::unique_ptr<History> difference, average;
-    if (damped_) make_histories(difference, average);
-    const Eigen::Index d = d_;
-    Eigen::VectorXd y_next = problem_.x0, y_k = x_first_, y_prev(d), s(d), g(d), f_tau(d),
-                    f_tau2(d), c(d), ym(d), step(d), ytil(d), force(d), poly_a(d), poly_b(d), s1(d),
-                    part(d);
-    Eigen::VectorXd delta = y_k - y_next;  // Δ = y_{k−1} − y_k
-    // ỹ̄ of the midpoint between y_j and y_{j+1}, which mirrors x̃̄_{N−1−j}.
-    auto mid_tilde = [&](const Eigen::VectorXd& lo, const Eigen::VectorXd& hi, std::size_t j,
-                         Eigen::VectorXd& out) {
-      out = 0.5 * (lo + hi);
-      subtract_polynomial_midpoint(n - 1 - j, out);
-    };
-    if (damped_) {
+    Eigen::VectorXd s, s1, part, ytil, poly_a, poly_b;
+    // The midpoint between `lo` and `hi` (midpoint i of y, mirroring x-midpoint N − 1 − i) minus P.
+    void mid_tilde(const Eigen::VectorXd& lo, const Eigen::VectorXd& hi, std::size_t i) {
+      ytil = 0.5 * (lo + hi);
+      self.subtract_polynomial_midpoint(n - 1 - i, ytil);
+    }
+    void start(const Eigen::VectorXd& y_n, const Eigen::VectorXd& y_n1) {
+      if (!self.damped_) return;
+      self.make_histories(difference, average);
       // Midpoint i of y is the (N − 1 − i)-th of the forward-running memory.
-      mid_tilde(y_k, y_next, n - 1, ytil);
-      known_memory(difference.get(), average.get(), 0, current_weight_, s1, part, s);
+      mid_tilde(y_n1, y_n, n - 1);
+      known_memory(difference.get(), average.get(), 0, self.current_weight_, s1, part, s);
       push_memory(difference.get(), average.get(), 0, ytil, s1, part);
     }
-    std::size_t next_row = 0;
-    double err = 0.0;
-    for (std::size_t kk = n - 1; kk >= 1; --kk) {
-      // Midpoint kk−1 (between the unknown y_{kk−1} and y_kk) mirrors x-midpoint N − kk; node kk
-      // mirrors x-node N − kk, whose P force is ½(G^P_{N−kk} + G^P_{N−kk−1}).
-      const double tau_known = half_time(n - kk - 1), tau_new = half_time(n - kk);
-      const Eigen::VectorXd* f_known = nullptr;
-      const Eigen::VectorXd* f_new = nullptr;
-      if (has_forcing_) {
-        problem_.model.forcing(tau_known, f_tau);
-        problem_.model.forcing(tau_new, f_tau2);
-        f_known = &f_tau;
-        f_new = &f_tau2;
-      }
-      ym = 0.5 * (y_next + y_k);
-      solver.effective_gradient(ym, tau_known, f_known, g);
-      mass_.multiply(delta, c);
-      c -= (0.5 * h_ * h_) * g;
-      if (damped_) {
-        // Known part of h² × damping: R'(ω̂_0 (y_kk − P) + S) + Ĝ^P.
-        known_memory(difference.get(), average.get(), n - kk, current_weight_, s1, part, s);
-        ytil = y_k;
-        subtract_polynomial_midpoint(n - kk, ytil);
-        s += current_weight_ * ytil;
-        force_matrix_.multiply(s, force);
-        polynomial_force(n - kk, poly_a);
-        polynomial_force(n - kk - 1, poly_b);
-        force += 0.5 * (poly_a + poly_b);
-        c -= (h_ * h_) * force;
-      }
-      step = delta;  // predictor
-      const NewtonReport report = solver.solve(y_k, tau_new, c, f_new, step);
-      if (report.status != Status::kSuccess) return kNaN;
-      delta = step;
-      y_prev = y_k + delta;
-      const std::size_t mirrored = n - kk + 1;  // y_{kk−1} ≈ x_{mirrored}
-      while (next_row < rows && steps[next_row] < mirrored) ++next_row;
-      if (next_row < rows && steps[next_row] == mirrored) {
-        const Eigen::Map<const Eigen::VectorXd> x_row(
-            x_rows.row(static_cast<Eigen::Index>(next_row)).data(), d);
-        err = std::max(err, (y_prev - x_row).cwiseAbs().maxCoeff());
-      }
-      if (damped_) {
-        mid_tilde(y_prev, y_k, kk - 1, ytil);
-        push_memory(difference.get(), average.get(), n - kk, ytil, s1, part);
-      }
-      y_next.swap(y_k);
-      y_k.swap(y_prev);
+    void known(std::size_t k, const Eigen::VectorXd& y_k, Eigen::VectorXd& out) {
+      out.setZero();
+      if (!self.damped_) return;
+      // R'(ω̂_0 (y_k − P) + S) + ½(G^P_{N−k} + G^P_{N−k−1}): the unknown half Δ/2 of ȳ_{k−1} is
+      // in the Newton matrix; node k mirrors x-node N − k.
+      known_memory(difference.get(), average.get(), n - k, self.current_weight_, s1, part, s);
+      ytil = y_k;
+      self.subtract_polynomial_midpoint(n - k, ytil);
+      s += self.current_weight_ * ytil;
+      self.force_matrix_.multiply(s, out);
+      self.polynomial_force(n - k, poly_a);
+      self.polynomial_force(n - k - 1, poly_b);
+      out += 0.5 * (poly_a + poly_b);
     }
-    return err;
-  } catch (...) {
-    return kNaN;  // a throwing callback makes the check unavailable, not the run invalid
-  }
+    void accept(std::size_t k, const Eigen::VectorXd& y_km1, const Eigen::VectorXd& y_k) {
+      if (!self.damped_) return;
+      mid_tilde(y_km1, y_k, k - 1);
+      push_memory(difference.get(), average.get(), n - k, ytil, s1, part);
+    }
+  };
+  const Eigen::VectorXd work = Eigen::VectorXd::Zero(d_);
+  Damping damping{*this, n_steps_, nullptr, nullptr, work, work, work, work, work, work};
+  return backward_mirror_run(problem_, options_, mass_, newton_matrix_, h_, x_first_, x_rows, steps,
+                             damping);
 }
 
 }  // namespace
@@ -402,7 +366,7 @@ const SchemeInfo kFviMidpoint{
     .variational_quadrature = std::nullopt,  // its Δ^α_± act on midpoint values: no BVP form yet
     .has_mirror = true,
     .exact_balance = true,
-    .fast_history = false,  // the fits cover GL and BDF2 weights without a lag (docs/schemes.md)
+    .fast_history = true,  // both memory sums are GL sums (orders 2α and 1 − 2α, lag 1)
     .momentum_quadrature = CqScheme::kTrapezoidal,
     .applies_to = "0 <= 2alpha < 2",
     .stability_rule =

@@ -58,7 +58,8 @@ struct WeightErrors {
   std::size_t worst_lag = 0;
 };
 
-// Relative error of every represented tail weight against the exact reference.
+// Relative error of every represented tail weight against the exact reference (dense_exact is
+// the represented sequence: c_{m+lag} at index m).
 WeightErrors weight_errors(const ExponentialFit& fit, const std::vector<double>& dense_exact) {
   WeightErrors e;
   const std::size_t last_dense = std::min(kDenseCheckEnd, fit.max_lag);
@@ -71,7 +72,8 @@ WeightErrors weight_errors(const ExponentialFit& fit, const std::vector<double>&
   }
   if (fit.max_lag > kDenseCheckEnd) {
     for (const std::size_t m : log_spaced_lags(kDenseCheckEnd, fit.max_lag)) {
-      const double err = std::abs(fit.weight(m) / cq_weight(fit.scheme, fit.order, m) - 1.0);
+      const double err =
+          std::abs(fit.weight(m) / cq_weight(fit.scheme, fit.order, m + fit.lag) - 1.0);
       if (err > e.sparse) {
         e.sparse = err;
         e.worst_lag = m;
@@ -142,6 +144,36 @@ TEST(ExponentialFit, EveryTailWeightWithinToleranceGl) {
         "(to 1e8), cancellation %.2f, fit %.1f ms\n",
         beta, fit.window, fit.terms(), fit.quadrature_nodes, e.dense, e.sparse, fit.cancellation,
         1e3 * fit.seconds);
+  }
+}
+
+// Negative GL orders (−1 < β < 0: the fractional-integral weights c_m ~ m^{−β−1}/Γ(−β), positive)
+// and lagged sequences c_{m+1} (fvi-midpoint's two memory sums, orders 2α and 1 − 2α, lag 1): the
+// same representation, the same per-weight tolerance.
+TEST(ExponentialFit, EveryTailWeightWithinToleranceNegativeOrdersAndLags) {
+  constexpr double kTol = kDefaultFitTolerance;
+  struct Case {
+    double beta;
+    std::size_t lag;
+  };
+  for (const Case c : {Case{-0.9, 0}, Case{-0.5, 0}, Case{-0.1, 0}, Case{-0.5, 1}, Case{0.6, 1},
+                       Case{1.5, 1}, Case{-0.8, 1}}) {
+    ExponentialFitOptions o;
+    o.order = c.beta;
+    o.lag = c.lag;
+    o.tolerance = kTol;
+    o.max_lag = kLargestLag;
+    const ExponentialFit fit = fit_exponentials(o);
+    std::vector<double> exact = gl_weights(c.beta, kDenseCheckEnd + 1 + c.lag);
+    exact.erase(exact.begin(), exact.begin() + static_cast<std::ptrdiff_t>(c.lag));
+    for (std::size_t m = 0; m < fit.window; ++m) ASSERT_EQ(fit.weight(m), exact[m]);
+    const WeightErrors e = weight_errors(fit, exact);
+    EXPECT_LE(e.dense, kTol) << "beta " << c.beta << " lag " << c.lag << " at " << e.worst_lag;
+    EXPECT_LE(e.sparse, kTol) << "beta " << c.beta << " lag " << c.lag << " at " << e.worst_lag;
+    std::printf(
+        "GL beta=%.2f lag %zu eps=1e-10 N=1e8: K=%zu max rel err %.2e / %.2e, cancellation "
+        "%.2f, fit %.1f ms\n",
+        c.beta, c.lag, fit.terms(), e.dense, e.sparse, fit.cancellation, 1e3 * fit.seconds);
   }
 }
 
@@ -340,7 +372,7 @@ TEST(FastHistory, Bdf2MatchesDirectConvolution) {
     const std::vector<double> w = cq_weights(CqScheme::kBdf2, beta, kN);
     double weight_sum = 0.0;
     for (const double x : w) weight_sum += std::abs(x);
-    const auto history = make_fast_history(beta, kD, kN, 1e-10, CqScheme::kBdf2);
+    const auto history = make_fast_history({CqScheme::kBdf2, beta}, kD, kN, 1e-10);
     Eigen::VectorXd s(kD);
     double max_diff = 0.0;
     for (std::size_t k = 0; k < kN; ++k) {
@@ -423,7 +455,9 @@ TEST(FastHistory, RejectsBadArguments) {
   EXPECT_THROW(FastHistory(0.0, 1, 100), std::invalid_argument);
   EXPECT_THROW(FastHistory(2.0, 1, 100), std::invalid_argument);
   EXPECT_THROW(FastHistory(2.5, 1, 100), std::invalid_argument);
-  EXPECT_THROW(FastHistory(-0.5, 1, 100), std::invalid_argument);
+  EXPECT_NO_THROW(FastHistory(-0.5, 1, 100));  // GL of negative order: a fractional integral
+  EXPECT_THROW(FastHistory(-1.0, 1, 100), std::invalid_argument);
+  EXPECT_THROW(FastHistory(-1.5, 1, 100), std::invalid_argument);
   EXPECT_THROW(FastHistory(std::nan(""), 1, 100), std::invalid_argument);
   EXPECT_THROW(FastHistory(0.5, 0, 100), std::invalid_argument);
   EXPECT_THROW(FastHistory(0.5, 1, 0), std::invalid_argument);

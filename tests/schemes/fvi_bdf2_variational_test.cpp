@@ -41,6 +41,7 @@
 #include <vector>
 
 #include "../support/test_names.hpp"
+#include "../support/variational_fixture.hpp"
 #include "fracvi/fractional/weights.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/lagrangian/action_sum.hpp"
@@ -49,43 +50,7 @@
 namespace fracvi {
 namespace {
 
-constexpr double kEps = std::numeric_limits<double>::epsilon();
-constexpr Eigen::Index kDim = 2;
-
-// Rounding factor of the tolerance kRoundoff · (N + 1) · ε · S (see roundoff_tolerance()).
-constexpr double kRoundoff = 8.0;
-// A negative control must miss its tolerance by this factor at least. The controls differ from
-// the tested equations by a discretisation difference, not by rounding: GL vs BDF2 memory is
-// O(h)·R·|D^{2α+1}x| along a smooth trajectory and O(R h^{−2α}|x|) at arbitrary sequences; a
-// swapped routing or a missing split is O(1) (measured: ≥ 1e8 times the tolerance).
-constexpr double kControlFactor = 1e4;
-
-using Dual = Eigen::AutoDiffScalar<Eigen::VectorXd>;
-using DualMatrix = Eigen::Matrix<Dual, Eigen::Dynamic, Eigen::Dynamic>;
-
-// Non-diagonal SPD mass; non-diagonal, positive *semi*definite (rank 1: 0.5·0.18 = 0.3²) damping.
-Eigen::Matrix2d mass() {
-  return Eigen::Matrix2d{{1.5, 0.3}, {0.3, 1.0}};
-}
-Eigen::Matrix2d damping() {
-  return Eigen::Matrix2d{{0.5, -0.3}, {-0.3, 0.18}};
-}
-
-// Two coupled pendula with an explicitly time-dependent stiffness: nonlinear, non-separable.
-struct CoupledPendula {
-  template <class T>
-  T operator()(const Eigen::Matrix<T, Eigen::Dynamic, 1>& x, T t) const {
-    using std::cos;
-    const T spring = x(1) - x(0);
-    return T(9.81) * (T(1.0) - cos(x(0))) + T(4.0) * (T(1.0) - cos(x(1))) + spring * spring +
-           T(0.1) * t * x(0) * x(0);
-  }
-};
-
-void forcing(double t, Eigen::Ref<Eigen::VectorXd> f) {
-  f(0) = 0.5 + 0.3 * std::sin(2.0 * t);
-  f(1) = 0.2 + 0.1 * t;
-}
+using namespace test::variational;  // NOLINT(google-build-using-namespace): the shared fixture
 
 // The data of one comparison. Memory shifts and prescribed grid forces are zero unless the Taylor
 // split is tested: px, py (d × (N+1)) are subtracted inside the memory, fx, fy are the P forces
@@ -101,16 +66,6 @@ struct ActionGrid {
   void zero_split() { px = py = fx = fy = Eigen::MatrixXd::Zero(kDim, n + 1); }
 };
 
-// Σ_ij u_i A_ij w_j, started from a term (not from a bare T(0), which has no derivative vector).
-template <class T, class U, class W>
-T bilinear(const Eigen::Matrix2d& A, const U& u, const W& w) {
-  T s = u(0) * (A(0, 0) * w(0));
-  for (Eigen::Index i = 0; i < kDim; ++i)
-    for (Eigen::Index j = 0; j < kDim; ++j)
-      if (i != 0 || j != 0) s += u(i) * (A(i, j) * w(j));
-  return s;
-}
-
 // The mechanical Lagrangian of Cor. 4.4 at one phase point z = [x; y; ẋ; ẏ; D^α_−x; D^α_+y], with
 // U_f(x, t) = U(x, t) − f(t)·x evaluated at t for x and at the mirrored time a + b − t for y.
 // `memory_only` keeps only −(D^α_−x)ᵀR D^α_+y.
@@ -124,15 +79,8 @@ T mechanical_lagrangian(const Eigen::Matrix<T, Eigen::Dynamic, 1>& z, double t, 
   if (memory_only) return -memory;
   const Eigen::Matrix2d m = mass();
   const T kinetic = T(0.5) * bilinear<T>(m, xd, xd) + T(0.5) * bilinear<T>(m, yd, yd);
-  // The return type is T, not auto: AutoDiff sums are lazy expressions that would outlive qv.
-  auto potential = [&](const auto& q, double tq) -> T {
-    const Eigen::Matrix<T, Eigen::Dynamic, 1> qv = q;
-    const T tt = T(0.0) * qv(0) + T(tq);  // a constant with a sized derivative vector
-    Eigen::VectorXd f(kDim);
-    forcing(tq, f);
-    return CoupledPendula{}(qv, tt) - (qv(0) * f(0) + qv(1) * f(1));
-  };
-  return kinetic - potential(x, t) - potential(y, t_mirror) - memory;
+  const Eigen::Matrix<T, Eigen::Dynamic, 1> xv = x, yv = y;
+  return kinetic - potential_f<T>(xv, t) - potential_f<T>(yv, t_mirror) - memory;
 }
 
 // A_d⁺ with the Δ^α_± of `weights` (ω^{(α)}, length ≥ N + 1), memory on (x − px, y − py), minus
@@ -258,29 +206,6 @@ Equations disc_eqs(const Eigen::MatrixXd& x, const Eigen::MatrixXd& y, const Act
   return e;
 }
 
-// Both sides compute Σ of at most 2(N+1) + 10 terms per component, each bounded by the term size
-// S (the AD side through the nested sums Δ^α_−Δ^α_−, the explicit side through one convolution
-// with ω^{(2α)}; the weights ω^{(α)}*ω^{(α)} and ω^{(2α)} differ by their own recurrence rounding,
-// at most (N+1)ε relative). Recursive summation loses at most (terms)·ε·S per side, so
-// |difference| ≤ ≈ 4(N+1)ε S; kRoundoff = 8 leaves a factor 2. At an integrator trajectory, the
-// stored x_k carry their own rounding ε|x_k|, which the kinetic part of S (‖M‖ 4|x|/h²) covers.
-double roundoff_tolerance(const ActionGrid& s, double scale) {
-  return kRoundoff * static_cast<double>(s.n + 1) * kEps * scale;
-}
-
-double max_interior(const Eigen::MatrixXd& a, Eigen::Index n) {
-  return a.middleCols(1, n - 1).cwiseAbs().maxCoeff();
-}
-
-std::shared_ptr<const Potential> pendula() {
-  return make_autodiff_potential(CoupledPendula{}, kDim);
-}
-
-/// Test-name suffix of the suites parameterised by α: "alpha_0_3".
-std::string alpha_name(const ::testing::TestParamInfo<double>& param_info) {
-  return "alpha_" + test::name_tag(param_info.param);
-}
-
 // ---------------------------------------------------------------------------------------------
 
 // The grid (α = GetParam(), no Taylor split) and the sequences x, y of a RandomSequences test.
@@ -327,7 +252,7 @@ TEST_P(RandomSequences, Bdf2DiscEqsIsTheRestrictedGradientOfTheBdf2ActionSum) {
   const Eigen::MatrixXd grad_bdf2 =
       gradient(x, y, s, cq_weights(CqScheme::kBdf2, s.alpha, n1), Seed::kRestricted);
   const Eigen::MatrixXd grad_gl = gradient(x, y, s, gl_weights(s.alpha, n1), Seed::kRestricted);
-  const double tol = roundoff_tolerance(s, e.scale);
+  const double tol = equation_tolerance(s.n, e.scale);
   const double err = max_interior(scheme - grad_bdf2, s.n);
   const double control = max_interior(scheme - grad_gl, s.n);
   std::printf(
@@ -350,7 +275,7 @@ TEST_P(RandomSequences, MemoryGradientsAreTheDampingSumsOfBothEquations) {
   // Δ^α_−D_6L = −R h^{−2α} Σ_m ω^{(2α)}_m x_{k−m}; varying x the y-equation's Δ^α_+D_5L.
   const Eigen::MatrixXd by_y = gradient(x, y, s, w, Seed::kYOnly, /*memory_only=*/true);
   const Eigen::MatrixXd by_x = gradient(x, y, s, w, Seed::kXOnly, /*memory_only=*/true);
-  const double tol = roundoff_tolerance(s, e.damping_scale);
+  const double tol = equation_tolerance(s.n, e.damping_scale);
   const double err_x = max_interior(by_y + e.damp_x, s.n);
   const double err_y = max_interior(by_x + e.damp_y, s.n);
   // Negative control: the routing matters — the x-variation is not the backward sum.
@@ -367,23 +292,6 @@ TEST_P(RandomSequences, MemoryGradientsAreTheDampingSumsOfBothEquations) {
 INSTANTIATE_TEST_SUITE_P(Alphas, RandomSequences, ::testing::Values(0.3, 0.5, 0.75), alpha_name);
 
 // ---------------------------------------------------------------------------------------------
-
-InitialValueProblem problem(double alpha, Convention convention, const Eigen::Vector2d& x0,
-                            const Eigen::Vector2d& v0, const ActionGrid& s) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd(mass());
-  p.model.damping = Eigen::MatrixXd(damping());
-  p.model.alpha = alpha;
-  p.model.convention = convention;
-  p.model.potential = pendula();
-  p.model.forcing = forcing;
-  p.x0 = x0;
-  p.v0 = v0;
-  p.t0 = s.a;
-  p.t_end = s.b;
-  p.steps = static_cast<std::size_t>(s.n);
-  return p;
-}
 
 Eigen::MatrixXd run_bdf2(const InitialValueProblem& p) {
   IntegratorOptions o;
@@ -402,8 +310,8 @@ TEST_P(IntegratorTrajectory, SolvesTheRestrictedEquationsOfTheBdf2ActionSum) {
   s.n = 40;
   s.alpha = GetParam();
   s.zero_split();  // x_0 = v_0 = 0: P ≡ 0, x̃ = x, no polynomial force
-  const InitialValueProblem p =
-      problem(s.alpha, Convention::kCaputo, Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), s);
+  const InitialValueProblem p = problem(s.alpha, Convention::kCaputo, Eigen::Vector2d::Zero(),
+                                        Eigen::Vector2d::Zero(), s.a, s.b, s.n);
   const Eigen::MatrixXd x = run_bdf2(p);
   const Eigen::MatrixXd y = x.rowwise().reverse();  // y_k = x_{N−k} (Remark 4.5)
   const Equations e = disc_eqs(x, y, s, *p.model.potential);
@@ -411,7 +319,7 @@ TEST_P(IntegratorTrajectory, SolvesTheRestrictedEquationsOfTheBdf2ActionSum) {
   const Eigen::MatrixXd grad_bdf2 =
       gradient(x, y, s, cq_weights(CqScheme::kBdf2, s.alpha, n1), Seed::kRestricted);
   const Eigen::MatrixXd grad_gl = gradient(x, y, s, gl_weights(s.alpha, n1), Seed::kRestricted);
-  const double tol = roundoff_tolerance(s, e.scale);
+  const double tol = equation_tolerance(s.n, e.scale);
   const double res_x = max_interior(e.ex, s.n), res_y = max_interior(e.ey, s.n);
   const double res_grad = max_interior(grad_bdf2, s.n), res_gl = max_interior(grad_gl, s.n);
   std::printf(
@@ -444,16 +352,6 @@ Eigen::Vector2d polynomial_force_antiderivative(double tau, double beta, Convent
   return j;
 }
 
-struct SplitCase {
-  double alpha;
-  Convention convention;
-};
-
-// How gtest prints a case (also in ctest's test list), instead of its bytes.
-void PrintTo(const SplitCase& c, std::ostream* os) {
-  *os << to_string(c.convention) << ", alpha " << c.alpha;
-}
-
 class TaylorSplitTrajectory : public ::testing::TestWithParam<SplitCase> {};
 
 TEST_P(TaylorSplitTrajectory, SolvesTheSplitEquationsOfTheBdf2ActionSum) {
@@ -462,7 +360,7 @@ TEST_P(TaylorSplitTrajectory, SolvesTheSplitEquationsOfTheBdf2ActionSum) {
   s.n = 40;
   s.alpha = c.alpha;
   const Eigen::Vector2d x0(0.4, -0.3), v0(0.5, 0.8);
-  const InitialValueProblem p = problem(s.alpha, c.convention, x0, v0, s);
+  const InitialValueProblem p = problem(s.alpha, c.convention, x0, v0, s.a, s.b, s.n);
   const Eigen::MatrixXd x = run_bdf2(p);
   const Eigen::MatrixXd y = x.rowwise().reverse();
   const double h = s.h(), beta = 2.0 * s.alpha;
@@ -489,7 +387,7 @@ TEST_P(TaylorSplitTrajectory, SolvesTheSplitEquationsOfTheBdf2ActionSum) {
   const Eigen::MatrixXd grad =
       gradient(x, y, s, cq_weights(CqScheme::kBdf2, s.alpha, static_cast<std::size_t>(s.n + 1)),
                Seed::kRestricted);
-  const double tol = roundoff_tolerance(s, e.scale);
+  const double tol = equation_tolerance(s.n, e.scale);
   const double res_x = max_interior(e.ex, s.n), res_grad = max_interior(grad, s.n);
   // Negative control: DiscEqs_bdf2 on x itself (no split, no polynomial force).
   ActionGrid plain = s;
@@ -504,16 +402,7 @@ TEST_P(TaylorSplitTrajectory, SolvesTheSplitEquationsOfTheBdf2ActionSum) {
   EXPECT_GT(res_plain, kControlFactor * tol);
 }
 
-INSTANTIATE_TEST_SUITE_P(Conventions, TaylorSplitTrajectory,
-                         ::testing::Values(SplitCase{0.3, Convention::kCaputo},
-                                           SplitCase{0.3, Convention::kRiemannLiouville},
-                                           SplitCase{0.5, Convention::kCaputo},
-                                           SplitCase{0.75, Convention::kCaputo}),
-                         [](const ::testing::TestParamInfo<SplitCase>& param_info) {
-                           // "caputo_alpha_0_3", "riemann_liouville_alpha_0_3"
-                           return test::name_tag(to_string(param_info.param.convention)) +
-                                  "_alpha_" + test::name_tag(param_info.param.alpha);
-                         });
+INSTANTIATE_TEST_SUITE_P(Conventions, TaylorSplitTrajectory, kSplitCases, split_case_name);
 
 }  // namespace
 }  // namespace fracvi

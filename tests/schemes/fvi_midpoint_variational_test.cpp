@@ -38,6 +38,7 @@
 #include <vector>
 
 #include "../support/test_names.hpp"
+#include "../support/variational_fixture.hpp"
 #include "fracvi/fractional/weights.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/autodiff_potential.hpp"
@@ -46,37 +47,7 @@
 namespace fracvi {
 namespace {
 
-constexpr double kEps = std::numeric_limits<double>::epsilon();
-constexpr Eigen::Index kDim = 2;
-// Rounding factor of the tolerance kRoundoff · (N + 1) · ε · S (S: the largest term size).
-constexpr double kRoundoff = 8.0;
-// A negative control must miss its tolerance by at least this factor.
-constexpr double kControlFactor = 1e4;
-
-using Dual = Eigen::AutoDiffScalar<Eigen::VectorXd>;
-using DualMatrix = Eigen::Matrix<Dual, Eigen::Dynamic, Eigen::Dynamic>;
-
-Eigen::Matrix2d mass() {
-  return Eigen::Matrix2d{{1.5, 0.3}, {0.3, 1.0}};
-}
-Eigen::Matrix2d damping() {  // PSD, rank 1
-  return Eigen::Matrix2d{{0.5, -0.3}, {-0.3, 0.18}};
-}
-
-struct CoupledPendula {
-  template <class T>
-  T operator()(const Eigen::Matrix<T, Eigen::Dynamic, 1>& x, T t) const {
-    using std::cos;
-    const T spring = x(1) - x(0);
-    return T(9.81) * (T(1.0) - cos(x(0))) + T(4.0) * (T(1.0) - cos(x(1))) + spring * spring +
-           T(0.1) * t * x(0) * x(0);
-  }
-};
-
-void forcing(double t, Eigen::Ref<Eigen::VectorXd> f) {
-  f(0) = 0.5 + 0.3 * std::sin(2.0 * t);
-  f(1) = 0.2 + 0.1 * t;
-}
+using namespace test::variational;  // NOLINT(google-build-using-namespace): the shared fixture
 
 // Grid, α, and the Taylor-split data at the N midpoints: memory shifts pbar (P̄_i for x, its
 // mirror for y) and prescribed P forces gp (before R), zero unless the split is tested.
@@ -91,24 +62,6 @@ struct Grid {
   }
   void zero_split() { pbar_x = pbar_y = gp_x = gp_y = Eigen::MatrixXd::Zero(kDim, n); }
 };
-
-template <class T, class U, class W>
-T bilinear(const Eigen::Matrix2d& A, const U& u, const W& w) {
-  T s = u(0) * (A(0, 0) * w(0));
-  for (Eigen::Index i = 0; i < kDim; ++i)
-    for (Eigen::Index j = 0; j < kDim; ++j)
-      if (i != 0 || j != 0) s += u(i) * (A(i, j) * w(j));
-  return s;
-}
-
-// U_f(q, t) = U(q, t) − f(t)·q.
-template <class T>
-T potential_f(const Eigen::Matrix<T, Eigen::Dynamic, 1>& q, double t) {
-  const T tt = T(0.0) * q(0) + T(t);
-  Eigen::VectorXd f(kDim);
-  forcing(t, f);
-  return CoupledPendula{}(q, tt) - (q(0) * f(0) + q(1) * f(1));
-}
 
 // A_d with Δ^α_± of `weights` (ω^{(α)}, length ≥ N), memory on x̄ − P̄, ȳ − P̄*, and the prescribed
 // midpoint forces −h Σ (R g^P_k)·x̄_k (and mirrored in y). memory_only keeps the memory term.
@@ -240,22 +193,6 @@ Equations node_equations(const Eigen::MatrixXd& x, const Eigen::MatrixXd& y, con
   return e;
 }
 
-double roundoff_tolerance(const Grid& s, double scale) {
-  return kRoundoff * static_cast<double>(s.n + 1) * kEps * scale;
-}
-
-double max_interior(const Eigen::MatrixXd& a, Eigen::Index n) {
-  return a.middleCols(1, n - 1).cwiseAbs().maxCoeff();
-}
-
-std::shared_ptr<const Potential> pendula() {
-  return make_autodiff_potential(CoupledPendula{}, kDim);
-}
-
-std::string alpha_name(const ::testing::TestParamInfo<double>& param_info) {
-  return "alpha_" + test::name_tag(param_info.param);
-}
-
 // ---------------------------------------------------------------------------------------------
 
 class RandomSequences : public ::testing::TestWithParam<double> {};
@@ -278,7 +215,7 @@ TEST_P(RandomSequences, NodeEquationsAreTheRestrictedGradientOfTheTrapezoidalAct
   const auto n = static_cast<std::size_t>(s.n);
   const Eigen::MatrixXd grad = gradient(x, y, s, cq_weights(CqScheme::kTrapezoidal, s.alpha, n));
   const Eigen::MatrixXd grad_bdf2 = gradient(x, y, s, cq_weights(CqScheme::kBdf2, s.alpha, n));
-  const double tol = roundoff_tolerance(s, e.scale);
+  const double tol = equation_tolerance(s.n, e.scale);
   const double err = max_interior(scheme - grad, s.n);
   const double control = max_interior(scheme - grad_bdf2, s.n);
   std::printf(
@@ -292,23 +229,6 @@ TEST_P(RandomSequences, NodeEquationsAreTheRestrictedGradientOfTheTrapezoidalAct
 INSTANTIATE_TEST_SUITE_P(Alphas, RandomSequences, ::testing::Values(0.3, 0.5, 0.75), alpha_name);
 
 // ---------------------------------------------------------------------------------------------
-
-InitialValueProblem problem(double alpha, Convention convention, const Eigen::Vector2d& x0,
-                            const Eigen::Vector2d& v0, const Grid& s) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd(mass());
-  p.model.damping = Eigen::MatrixXd(damping());
-  p.model.alpha = alpha;
-  p.model.convention = convention;
-  p.model.potential = pendula();
-  p.model.forcing = forcing;
-  p.x0 = x0;
-  p.v0 = v0;
-  p.t0 = s.a;
-  p.t_end = s.b;
-  p.steps = static_cast<std::size_t>(s.n);
-  return p;
-}
 
 Solution run_midpoint(const InitialValueProblem& p) {
   IntegratorOptions o;
@@ -356,8 +276,8 @@ TEST_P(IntegratorTrajectory, SolvesTheRestrictedEquationsOfTheTrapezoidalActionS
   s.n = 40;
   s.alpha = GetParam();
   s.zero_split();  // x_0 = v_0 = 0: P ≡ 0
-  const InitialValueProblem p =
-      problem(s.alpha, Convention::kCaputo, Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), s);
+  const InitialValueProblem p = problem(s.alpha, Convention::kCaputo, Eigen::Vector2d::Zero(),
+                                        Eigen::Vector2d::Zero(), s.a, s.b, s.n);
   const Solution sol = run_midpoint(p);
   const Eigen::MatrixXd x = sol.x.transpose(), v = sol.v.transpose();
   const Eigen::MatrixXd y = x.rowwise().reverse();
@@ -367,8 +287,8 @@ TEST_P(IntegratorTrajectory, SolvesTheRestrictedEquationsOfTheTrapezoidalActionS
   const Eigen::MatrixXd grad_bdf2 = gradient(x, y, s, cq_weights(CqScheme::kBdf2, s.alpha, n));
   const auto [legendre, legendre_size] =
       legendre_residuals(x, v, Eigen::Vector2d::Zero(), s, e, *p.model.potential);
-  const double tol = roundoff_tolerance(s, e.scale);
-  const double tol_p = roundoff_tolerance(s, legendre_size + e.scale * s.h());
+  const double tol = equation_tolerance(s.n, e.scale);
+  const double tol_p = equation_tolerance(s.n, legendre_size + e.scale * s.h());
   const double res_x = max_interior(e.ex, s.n), res_y = max_interior(e.ey, s.n);
   const double res_grad = max_interior(grad, s.n), res_bdf2 = max_interior(grad_bdf2, s.n);
   std::printf(
@@ -401,15 +321,6 @@ Eigen::Vector2d phi(double tau, double beta, Convention c, const Eigen::Vector2d
   return out;
 }
 
-struct SplitCase {
-  double alpha;
-  Convention convention;
-};
-
-void PrintTo(const SplitCase& c, std::ostream* os) {
-  *os << to_string(c.convention) << ", alpha " << c.alpha;
-}
-
 class TaylorSplitTrajectory : public ::testing::TestWithParam<SplitCase> {};
 
 TEST_P(TaylorSplitTrajectory, SolvesTheSplitEquationsOfTheTrapezoidalActionSum) {
@@ -418,7 +329,7 @@ TEST_P(TaylorSplitTrajectory, SolvesTheSplitEquationsOfTheTrapezoidalActionSum) 
   s.n = 40;
   s.alpha = c.alpha;
   const Eigen::Vector2d x0(0.4, -0.3), v0(0.5, 0.8);
-  const InitialValueProblem p = problem(s.alpha, c.convention, x0, v0, s);
+  const InitialValueProblem p = problem(s.alpha, c.convention, x0, v0, s.a, s.b, s.n);
   const Solution sol = run_midpoint(p);
   const Eigen::MatrixXd x = sol.x.transpose(), v = sol.v.transpose();
   const Eigen::MatrixXd y = x.rowwise().reverse();
@@ -438,8 +349,8 @@ TEST_P(TaylorSplitTrajectory, SolvesTheSplitEquationsOfTheTrapezoidalActionSum) 
   const Eigen::MatrixXd grad =
       gradient(x, y, s, cq_weights(CqScheme::kTrapezoidal, s.alpha, static_cast<std::size_t>(s.n)));
   const auto [legendre, legendre_size] = legendre_residuals(x, v, v0, s, e, *p.model.potential);
-  const double tol = roundoff_tolerance(s, e.scale);
-  const double tol_p = roundoff_tolerance(s, legendre_size + e.scale * s.h());
+  const double tol = equation_tolerance(s.n, e.scale);
+  const double tol_p = equation_tolerance(s.n, legendre_size + e.scale * s.h());
   const double res_x = max_interior(e.ex, s.n), res_y = max_interior(e.ey, s.n);
   const double res_grad = max_interior(grad, s.n);
   Grid plain = s;
@@ -464,15 +375,7 @@ TEST_P(TaylorSplitTrajectory, SolvesTheSplitEquationsOfTheTrapezoidalActionSum) 
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Conventions, TaylorSplitTrajectory,
-                         ::testing::Values(SplitCase{0.3, Convention::kCaputo},
-                                           SplitCase{0.3, Convention::kRiemannLiouville},
-                                           SplitCase{0.5, Convention::kCaputo},
-                                           SplitCase{0.75, Convention::kCaputo}),
-                         [](const ::testing::TestParamInfo<SplitCase>& param_info) {
-                           return test::name_tag(to_string(param_info.param.convention)) +
-                                  "_alpha_" + test::name_tag(param_info.param.alpha);
-                         });
+INSTANTIATE_TEST_SUITE_P(Conventions, TaylorSplitTrajectory, kSplitCases, split_case_name);
 
 }  // namespace
 }  // namespace fracvi

@@ -58,11 +58,16 @@ inline constexpr double kMaxFitTolerance = 1e-3;
 
 struct ExponentialFitOptions {
   CqScheme scheme = CqScheme::kGrunwaldLetnikov;  ///< kGrunwaldLetnikov or kBdf2
-  double order = 0.5;                             ///< β = 2α, non-integer, 0 < β < 2
-  double tolerance = kDefaultFitTolerance;        ///< ε: max relative error of every tail weight
-  std::size_t max_lag = 1000;  ///< N_max: the fit holds for window ≤ m ≤ max_lag
-  std::size_t window = 0;      ///< n0 exact weights; 0 picks default_fit_window(scheme)
-  bool compress = true;        ///< false: keep the raw trapezoidal quadrature (for tests and docs)
+  /// Non-integer; 0 < β < 2 for BDF2, −1 < β < 2 for GL (negative orders: the weights of the
+  /// fractional integral, positive and decaying like m^{−β−1}; the same Laplace representation).
+  double order = 0.5;
+  double tolerance = kDefaultFitTolerance;  ///< ε: max relative error of every tail weight
+  std::size_t max_lag = 1000;               ///< N_max: the fit holds for window ≤ m ≤ max_lag
+  std::size_t window = 0;  ///< n0 exact weights; 0 picks default_fit_window(scheme)
+  /// The fit represents ω_{m+lag} (ConvolutionQuadrature::lag): a lagged fit is the unlagged fit
+  /// with window n0 + lag, its first `lag` head weights dropped (the tail is the same sum).
+  std::size_t lag = 0;
+  bool compress = true;  ///< false: keep the raw trapezoidal quadrature (for tests and docs)
 };
 
 /// c_m for m < window exactly (head), and for window ≤ m ≤ max_lag
@@ -74,7 +79,8 @@ struct ExponentialFit {
   double tolerance = 0.0;
   std::size_t max_lag = 0;
   std::size_t window = 0;
-  std::vector<double> head;     ///< exact c_0 … c_{window−1}
+  std::size_t lag = 0;          ///< the represented weights are c_{m+lag}
+  std::vector<double> head;     ///< exact c_lag … c_{lag+window−1}
   std::vector<double> lambdas;  ///< λ_j > 0, ascending
   std::vector<double> weights;  ///< w_j
 

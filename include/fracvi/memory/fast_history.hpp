@@ -55,7 +55,7 @@ class FastHistory final : public History {
   }
   [[nodiscard]] Eigen::Index dimension() const override { return ring_.rows(); }
   [[nodiscard]] ConvolutionQuadrature quadrature() const override {
-    return {fit_->scheme, fit_->order};
+    return {fit_->scheme, fit_->order, fit_->lag};
   }
   /// OpenMP threads for push() and sum() (0 = OpenMP's default). They split the degrees of
   /// freedom; below kParallelWork multiply–adds per step one thread does everything (a parallel
@@ -95,12 +95,11 @@ inline constexpr Eigen::Index kParallelWork = Eigen::Index{1} << 18;
 /// max_lag at ε = 1e-10, so the rounding costs at most about 2 terms.
 std::size_t fast_history_fit_lag(std::size_t capacity);
 
-/// FastHistory for the Grünwald–Letnikov or BDF2 weights of `order` (what HistoryKind::kFast
-/// should construct). Throws like the constructors.
-std::unique_ptr<History> make_fast_history(double order, Eigen::Index dimension,
-                                           std::size_t capacity,
-                                           double tolerance = kDefaultFitTolerance,
-                                           CqScheme scheme = CqScheme::kGrunwaldLetnikov);
+/// FastHistory for the Grünwald–Letnikov or BDF2 weights of `quadrature` (lag included; what
+/// HistoryKind::kFast constructs). Throws like the constructors and fit_exponentials().
+std::unique_ptr<History> make_fast_history(const ConvolutionQuadrature& quadrature,
+                                           Eigen::Index dimension, std::size_t capacity,
+                                           double tolerance = kDefaultFitTolerance);
 
 /// Capacity from which HistoryKind::kAuto should pick FastHistory for non-integer orders. Measured
 /// by bench/history_bench.cpp (docs/theory/fast_history.md §8): above it FastHistory wins a whole

@@ -1,0 +1,96 @@
+// The backward mirror run of the schemes with the midpoint discrete Lagrangian (internal): fvi-gl,
+// fvi-bdf2 and fvi-midpoint share everything but their damping.
+//
+// The y-equation at node k (k = N−1 … 1), with y_j ≈ x_{N−j} and U, f at the mirrored times,
+//
+//   M (y_{k+1} − 2y_k + y_{k−1})/h² + D_k + ½∇U_f(ȳ_k, τ_k) + ½∇U_f(ȳ_{k−1}, τ_{k−1}) = 0,
+//
+// is solved for y_{k−1} from y_N = x_0, y_{N−1} = x_1 in its literal second-difference form (not
+// the momentum form of the x-run), in increments Δ_k = y_{k−1} − y_k (round-off stays out of the
+// differences, as in the x-run):
+//
+//   J Δ_k + (h²/2) ∇U_f(y_k + Δ_k/2, τ_{k−1}) = M Δ_{k+1} − h² D^known_k − (h²/2) ∇U_f(ȳ_k, τ_k),
+//
+// where the scheme splits D_k into a known part and a part linear in Δ_k that it has put into
+// the Newton matrix J (M for the explicit memories of fvi-gl and fvi-bdf2). The scheme's damping
+// is a callback object with
+//   void start(const Eigen::VectorXd& y_n, const Eigen::VectorXd& y_n1);   // y_N, y_{N−1}
+//   void known(std::size_t k, const Eigen::VectorXd& y_k, Eigen::VectorXd& d);  // d = D^known_k
+//   void accept(std::size_t k, const Eigen::VectorXd& y_km1, const Eigen::VectorXd& y_k);
+// (accept() after y_{k−1} is solved). The result is max ‖y_{k−1} − x_{N−k+1}‖_∞ over the stored
+// rows (row i of x_rows is x at step steps[i], ascending), or NaN when Newton fails or a callback
+// throws (the check is then unavailable, the run not invalid).
+#pragma once
+
+#include <Eigen/Dense>
+#include <cstddef>
+#include <limits>
+#include <span>
+
+#include "fracvi/core/matrix.hpp"
+#include "fracvi/schemes/options.hpp"
+#include "fracvi/solve/midpoint_newton.hpp"
+
+namespace fracvi::internal {
+
+template <class Damping>
+double backward_mirror_run(const InitialValueProblem& problem, const IntegratorOptions& options,
+                           const ModelMatrix& mass, const ModelMatrix& newton_matrix, double h,
+                           const Eigen::VectorXd& x1, const RowMatrixXd& x_rows,
+                           std::span<const std::size_t> steps, Damping& damping) {
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  const std::size_t rows = steps.size();
+  try {
+    const std::size_t n = problem.steps;
+    if (n < 2) return 0.0;
+    MidpointNewton solver(newton_matrix, h, problem.model.potential.get(), options.newton,
+                          problem.t0, options.linear_solver);
+    const Eigen::Index d = problem.model.dimension();
+    const bool has_forcing = static_cast<bool>(problem.model.forcing);
+    auto half_time = [&](std::size_t i) { return problem.t0 + (static_cast<double>(i) + 0.5) * h; };
+    Eigen::VectorXd y_next = problem.x0, y_k = x1, y_prev(d), known(d), g(d), f_tau(d), f_tau2(d),
+                    c(d), ym(d), step(d);
+    Eigen::VectorXd delta = y_k - y_next;
+    damping.start(y_next, y_k);
+    std::size_t next_row = 0;
+    double err = 0.0;
+    for (std::size_t kk = n - 1; kk >= 1; --kk) {
+      damping.known(kk, y_k, known);
+      // ȳ_k = (y_{k+1} + y_k)/2 mirrors x̄ at t_{N−k−½}; ȳ_{k−1} mirrors x̄ at t_{N−k+½}.
+      const double tau_known = half_time(n - kk - 1), tau_new = half_time(n - kk);
+      const Eigen::VectorXd* f_known = nullptr;
+      const Eigen::VectorXd* f_new = nullptr;
+      if (has_forcing) {
+        problem.model.forcing(tau_known, f_tau);
+        problem.model.forcing(tau_new, f_tau2);
+        f_known = &f_tau;
+        f_new = &f_tau2;
+      }
+      ym = 0.5 * (y_next + y_k);
+      solver.effective_gradient(ym, tau_known, f_known, g);
+      mass.multiply(delta, c);
+      c -= (h * h) * known;
+      c -= (0.5 * h * h) * g;
+      step = delta;  // predictor
+      const NewtonReport report = solver.solve(y_k, tau_new, c, f_new, step);
+      if (report.status != Status::kSuccess) return kNaN;
+      delta = step;
+      y_prev = y_k + delta;
+      const std::size_t mirrored = n - kk + 1;  // y_{kk−1} ≈ x_{mirrored}
+      while (next_row < rows && steps[next_row] < mirrored) ++next_row;
+      if (next_row < rows && steps[next_row] == mirrored) {
+        const Eigen::Map<const Eigen::VectorXd> x_row(
+            x_rows.row(static_cast<Eigen::Index>(next_row)).data(), d);
+        err = std::max(err, (y_prev - x_row).cwiseAbs().maxCoeff());
+      }
+      damping.accept(kk, y_prev, y_k);
+      y_next.swap(y_k);
+      y_k.swap(y_prev);
+    }
+    return err;
+  } catch (...) {
+    return kNaN;
+  }
+}
+
+}  // namespace fracvi::internal
