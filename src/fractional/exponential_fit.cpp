@@ -13,30 +13,27 @@
 #include <string>
 #include <tuple>
 
+#include "tail_compression.hpp"
+
 namespace fracvi {
 
 namespace {
 
+using detail::sample_lags;
+using detail::trapezoidal_step;
+
 constexpr double kPi = std::numbers::pi;
 
-// Share of ε given to the truncation of the u-range (each end) and to the trapezoidal
-// discretisation; the compression then has to land within ε/2 (kVerifySafety) on the
-// verification lags, which leaves room for the lags between them.
-constexpr double kTruncationShare = 0.01;
-constexpr double kDiscretisationShare = 0.1;
-constexpr double kVerifySafety = 0.5;
-// Least-squares rows: every lag of the first kFitDense, then kFitPerDecade per decade.
-constexpr std::size_t kFitDense = 256;
-constexpr double kFitPerDecade = 60.0;
-// Verification lags: every lag of the first kVerifyDense, then kVerifyPerDecade per decade. The
-// error oscillates in ln m with a period of about the node spacing (≥ 0.3), so 200 per decade
-// (spacing 0.012 in ln m) samples each oscillation ≥ 25 times.
-constexpr std::size_t kVerifyDense = 4096;
-constexpr double kVerifyPerDecade = 200.0;
+// Shares of ε, least-squares rows and verification lags: tail_compression.hpp.
+using detail::kDiscretisationShare;
+using detail::kFitDense;
+using detail::kFitPerDecade;
+using detail::kTruncationShare;
+using detail::kVerifyDense;
+using detail::kVerifyPerDecade;
+using detail::kVerifySafety;
 // If the verification fails even with all J nodes, retry with a finer step (never observed).
 constexpr int kMaxAttempts = 4;
-// Step of the sweep over K before the bisection.
-constexpr std::size_t kSweepStep = 8;
 constexpr double kStepShrink = 0.8;
 // BDF2 reference weights: ((3 − ζ)/2)^β has coefficients O(3^{−n}); 41 terms reach 3^{−40} ≈ 1e−19.
 constexpr std::size_t kBdf2Terms = 41;
@@ -47,28 +44,6 @@ constexpr std::size_t kMaxFitLag = std::size_t{1} << 50;
 
 bool is_integer(double x) {
   return std::floor(x) == x;
-}
-
-// Integers first..min(last, first + dense), then about per_decade log-spaced integers up to last
-// (inclusive), strictly increasing.
-std::vector<std::size_t> sample_lags(std::size_t first, std::size_t last, std::size_t dense,
-                                     double per_decade) {
-  std::vector<std::size_t> lags;
-  const std::size_t dense_end = std::min(last, first + dense);
-  for (std::size_t m = first; m <= dense_end; ++m) lags.push_back(m);
-  if (dense_end < last) {
-    const double a = std::log10(static_cast<double>(dense_end));
-    const double b = std::log10(static_cast<double>(last));
-    const auto n = static_cast<std::size_t>(std::ceil((b - a) * per_decade));
-    for (std::size_t i = 1; i <= n; ++i) {
-      const double m =
-          std::round(std::pow(10.0, a + (b - a) * static_cast<double>(i) / static_cast<double>(n)));
-      const auto mi = std::min(last, static_cast<std::size_t>(m));
-      if (mi > lags.back()) lags.push_back(mi);
-    }
-    if (lags.back() != last) lags.push_back(last);
-  }
-  return lags;
 }
 
 // The Laplace density times e^{−n0 s}: c_m = ∫ e^{−(m − n0)s} [ρ(s) e^{−n0 s}] ds (see header).
@@ -86,17 +61,6 @@ double shifted_density(CqScheme scheme, double beta, double n0, double s) {
   if (es == 3.0) return 0.0;
   return -(std::sin(2.0 * kPi * beta) / kPi) *
          std::exp(beta * log_em1 + beta * std::log((es - 3.0) / 2.0) - n0 * s);
-}
-
-// Largest step h whose trapezoidal aliasing error stays below `target`. The leading aliasing term
-// of ∫ e^{−m e^u} e^{(1+β)u} du is 2|Γ(1 + β − 2πi/h)|/Γ(1 + β) relative, and Stirling gives
-// E(h) ≈ 2√(2π) (2π/h)^{β+1/2} e^{−π²/h} / Γ(1 + β) (this model matches the measured errors
-// within a factor 2 for β ∈ [0.3, 1.8], h ∈ [0.3, 0.5]). Solved for y = 1/h by fixed point.
-double trapezoidal_step(double beta, double target) {
-  const double rhs = std::log(2.0 * std::sqrt(2.0 * kPi) / (std::tgamma(1.0 + beta) * target));
-  double y = 3.0;
-  for (int it = 0; it < 60; ++it) y = (rhs + (beta + 0.5) * std::log(2.0 * kPi * y)) / (kPi * kPi);
-  return 1.0 / y;
 }
 
 struct Quadrature {
@@ -309,48 +273,8 @@ ExponentialFit fit_exponentials(const ExponentialFitOptions& options) {
                     std::exp(-quad.nodes[j] * static_cast<double>(fit_lags[i] - window));
         }
       }
-      const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> pivoted(a);
-      const auto& perm = pivoted.colsPermutation().indices();
-      const auto solve = [&](std::size_t k) {
-        std::vector<std::size_t> cols(k);
-        Eigen::MatrixXd a_sel(rows, static_cast<Eigen::Index>(k));
-        for (std::size_t t = 0; t < k; ++t) {
-          cols[t] = static_cast<std::size_t>(perm(static_cast<Eigen::Index>(t)));
-          a_sel.col(static_cast<Eigen::Index>(t)) = a.col(static_cast<Eigen::Index>(cols[t]));
-        }
-        const Eigen::VectorXd v = a_sel.householderQr().solve(b);
-        std::vector<double> w(k);
-        for (std::size_t t = 0; t < k; ++t)
-          w[t] = quad.weights[cols[t]] * v(static_cast<Eigen::Index>(t));
-        return evaluate(cols, w);
-      };
-      // Smallest K that passes: a sweep in steps of kSweepStep along the pivot order finds the
-      // first passing K (the error is not monotone in K near full rank, where the least-squares
-      // weights start to wiggle between the rows), then bisection below it.
-      const double accept = kVerifySafety * eps;
-      std::size_t hi = 0;
-      for (std::size_t k = std::min(kSweepStep, quad.nodes.size());;
-           k = std::min(k + kSweepStep, quad.nodes.size())) {
-        Selection trial = solve(k);
-        if (trial.error <= accept || k == quad.nodes.size()) {
-          hi = k;
-          best = std::move(trial);
-          break;
-        }
-      }
-      if (best.error <= accept) {
-        std::size_t lo = hi > kSweepStep ? hi - kSweepStep + 1 : 1;
-        while (lo < hi) {
-          const std::size_t mid = (lo + hi) / 2;
-          Selection trial = solve(mid);
-          if (trial.error <= accept) {
-            hi = mid;
-            best = std::move(trial);
-          } else {
-            lo = mid + 1;
-          }
-        }
-      }
+      best = detail::select_pivoted_terms(a, b, quad.weights, kVerifySafety * eps,
+                                          detail::kSweepStep, evaluate);
     }
     last_error = best.error;
     if (!options.compress || best.error <= kVerifySafety * eps) {

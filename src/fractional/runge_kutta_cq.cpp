@@ -12,9 +12,14 @@
 #include <unsupported/Eigen/MatrixFunctions>
 #include <utility>
 
+#include "tail_compression.hpp"
+
 namespace fracvi {
 
 namespace {
+
+using detail::sample_lags;
+using detail::trapezoidal_step;
 
 constexpr double kPi = std::numbers::pi;
 
@@ -109,16 +114,6 @@ double log_abs_stability(int s, double z) {
   const double rm1 = horner(f.p_minus_q, z) / q;
   if (rm1 > -0.5) return std::log1p(rm1);
   return std::log(std::abs(horner(f.p, z) / q));
-}
-
-// Largest step h in x = ln z whose trapezoidal error stays below `target` (relative), from the
-// leading aliasing term of ∫ e^{(1+β)x} e^{−j e^x} dx, 2|Γ(1 + β − 2πi/h)|/Γ(1 + β), and
-// Stirling (the same model as exponential_fit.cpp). Solved for y = 1/h by fixed point.
-double trapezoidal_step(double beta, double target) {
-  const double rhs = std::log(2.0 * std::sqrt(2.0 * kPi) / (std::tgamma(1.0 + beta) * target));
-  double y = 3.0;
-  for (int it = 0; it < 60; ++it) y = (rhs + (beta + 0.5) * std::log(2.0 * kPi * y)) / (kPi * kPi);
-  return 1.0 / y;
 }
 
 // One trapezoidal node z = e^{kh} of W_j = −(sin πβ/π) ∫ z^β r(−z)^{j−1} u vᵀ dz:
@@ -364,35 +359,8 @@ namespace fracvi {
 
 namespace {
 
-// Tail fit: shares of ε as in exponential_fit.cpp.
-constexpr double kTailTruncationShare = 0.01;
-constexpr double kTailDiscretisationShare = 0.1;
-constexpr double kTailVerifySafety = 0.5;
-constexpr std::size_t kTailFitDense = 256;
-constexpr double kTailFitPerDecade = 60.0;
-constexpr std::size_t kTailVerifyDense = 4096;
-constexpr double kTailVerifyPerDecade = 200.0;
-constexpr std::size_t kTailSweepStep = 8;
-
-std::vector<std::size_t> sample_lags(std::size_t first, std::size_t last, std::size_t dense,
-                                     double per_decade) {
-  std::vector<std::size_t> lags;
-  const std::size_t dense_end = std::min(last, first + dense);
-  for (std::size_t m = first; m <= dense_end; ++m) lags.push_back(m);
-  if (dense_end < last) {
-    const double a = std::log10(static_cast<double>(dense_end));
-    const double b = std::log10(static_cast<double>(last));
-    const auto n = static_cast<std::size_t>(std::ceil((b - a) * per_decade));
-    for (std::size_t i = 1; i <= n; ++i) {
-      const double m =
-          std::round(std::pow(10.0, a + (b - a) * static_cast<double>(i) / static_cast<double>(n)));
-      const auto mi = std::min(last, static_cast<std::size_t>(m));
-      if (mi > lags.back()) lags.push_back(mi);
-    }
-    if (lags.back() != last) lags.push_back(last);
-  }
-  return lags;
-}
+// Tail fit: shares of ε, sampled lags and sweep step as in exponential_fit.cpp
+// (tail_compression.hpp).
 
 // Accurate W_j at the given lags (all ≥ 2) from one node set.
 std::vector<Eigen::MatrixXd> accurate_weights(int s, double beta,
@@ -479,16 +447,16 @@ RkcqTail fit_rkcq_tail(const RkcqTailOptions& options) {
 
   const std::size_t n0 = options.window;
   const std::vector<std::size_t> fit_lags =
-      sample_lags(n0, options.max_lag, kTailFitDense, kTailFitPerDecade);
+      sample_lags(n0, options.max_lag, detail::kFitDense, detail::kFitPerDecade);
   const std::vector<std::size_t> check_lags =
-      sample_lags(n0, options.max_lag, kTailVerifyDense, kTailVerifyPerDecade);
+      sample_lags(n0, options.max_lag, detail::kVerifyDense, detail::kVerifyPerDecade);
   const std::vector<Eigen::MatrixXd> w_fit = accurate_weights(s, beta, fit_lags);
   const std::vector<Eigen::MatrixXd> w_check = accurate_weights(s, beta, check_lags);
   tail.verification_lags = check_lags.size();
 
   // The raw quadrature at the tolerance: γ_k = q_k r_k^{n0−1}, decay r_k.
-  const NodeFactory factory(s, beta, trapezoidal_step(beta, kTailDiscretisationShare * eps));
-  std::vector<Node> all = factory.nodes(n0, options.max_lag, kTailTruncationShare * eps);
+  const NodeFactory factory(s, beta, trapezoidal_step(beta, detail::kDiscretisationShare * eps));
+  std::vector<Node> all = factory.nodes(n0, options.max_lag, detail::kTruncationShare * eps);
   std::vector<Node> nodes;
   std::vector<double> gamma0;
   for (Node& n : all) {
@@ -559,47 +527,10 @@ RkcqTail fit_rkcq_tail(const RkcqTailOptions& options) {
       b.segment(static_cast<Eigen::Index>(v) * ss, ss) =
           Eigen::Map<const Eigen::VectorXd>(w_fit[v].data(), ss) / max_abs_coeff(w_fit[v]);
     }
-    const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> pivoted(a);
-    const auto& perm = pivoted.colsPermutation().indices();
-    const auto solve = [&](std::size_t k) {
-      std::vector<std::size_t> columns(k);
-      Eigen::MatrixXd a_sel(a.rows(), static_cast<Eigen::Index>(k));
-      for (std::size_t t = 0; t < k; ++t) {
-        columns[t] = static_cast<std::size_t>(perm(static_cast<Eigen::Index>(t)));
-        a_sel.col(static_cast<Eigen::Index>(t)) = a.col(static_cast<Eigen::Index>(columns[t]));
-      }
-      const Eigen::VectorXd x = a_sel.householderQr().solve(b);
-      std::vector<double> g(k);
-      for (std::size_t t = 0; t < k; ++t)
-        g[t] = gamma0[columns[t]] * x(static_cast<Eigen::Index>(t));
-      return evaluate(columns, g);
-    };
-    const double accept = kTailVerifySafety * eps;
-    std::size_t hi = 0;
-    for (std::size_t k = std::min(kTailSweepStep, nodes.size());;
-         k = std::min(k + kTailSweepStep, nodes.size())) {
-      TailSelection trial = solve(k);
-      if (trial.error <= accept || k == nodes.size()) {
-        hi = k;
-        best = std::move(trial);
-        break;
-      }
-    }
-    if (best.error <= accept) {
-      std::size_t lo = hi > kTailSweepStep ? hi - kTailSweepStep + 1 : 1;
-      while (lo < hi) {
-        const std::size_t mid = (lo + hi) / 2;
-        TailSelection trial = solve(mid);
-        if (trial.error <= accept) {
-          hi = mid;
-          best = std::move(trial);
-        } else {
-          lo = mid + 1;
-        }
-      }
-    }
+    best = detail::select_pivoted_terms(a, b, gamma0, detail::kVerifySafety * eps,
+                                        detail::kSweepStep, evaluate);
   }
-  if (!(best.error <= (options.compress ? kTailVerifySafety : 1.0) * eps)) {
+  if (!(best.error <= (options.compress ? detail::kVerifySafety : 1.0) * eps)) {
     throw std::runtime_error("fit_rkcq_tail: could not verify the tolerance " +
                              std::to_string(eps) + " (measured relative error " +
                              std::to_string(best.error) + ")");
