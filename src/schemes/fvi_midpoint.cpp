@@ -386,8 +386,10 @@ const SchemeInfo kFviMidpoint{
         },
     .stability =
         [](const InitialValueProblem&) {
-          return StabilityBound{true, std::numeric_limits<double>::infinity(),
-                                "implicit damping: stable for every h"};
+          return StabilityBound{.stable = true,
+                                .largest_step = std::numeric_limits<double>::infinity(),
+                                .sharp = true,
+                                .rule = "implicit damping: stable for every h"};
         },
     .make_stepper = [](const InitialValueProblem& problem,
                        const IntegratorOptions& options) -> std::unique_ptr<Stepper> {

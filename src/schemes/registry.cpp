@@ -12,10 +12,9 @@ namespace fracvi {
 namespace {
 
 // One line per scheme.
-constexpr std::array<const SchemeInfo*, 3> kSchemes{
-    &internal::kFviGl,
-    &internal::kFviBdf2,
-    &internal::kFviMidpoint,
+constexpr std::array<const SchemeInfo*, 6> kSchemes{
+    &internal::kFviGl,       &internal::kFviBdf2,     &internal::kFviMidpoint,
+    &internal::kFviLobatto2, &internal::kFviLobatto3, &internal::kFviLobatto4,
 };
 
 }  // namespace
@@ -105,10 +104,9 @@ void check_applicable(const InitialValueProblem& problem, const Method& method,
   } else {
     advice = "; no step size is stable for this damping (reduce R or use another scheme)";
   }
-  throw ValidationError("time.steps = " + std::to_string(problem.steps) +
-                        " (h = " + format_number(problem.step_size()) +
-                        ") is beyond the stability bound of " + std::string(info.name) +
-                        " (explicit damping memory): " + bound.rule + advice);
+  throw ValidationError("time.steps = " + std::to_string(problem.steps) + " (h = " +
+                        format_number(problem.step_size()) + ") is beyond the stability bound of " +
+                        std::string(info.name) + ": " + bound.rule + advice);
 }
 
 }  // namespace fracvi

@@ -8,5 +8,8 @@ namespace fracvi::internal {
 extern const SchemeInfo kFviGl;        // fvi_gl.cpp
 extern const SchemeInfo kFviBdf2;      // fvi_bdf2.cpp
 extern const SchemeInfo kFviMidpoint;  // fvi_midpoint.cpp
+extern const SchemeInfo kFviLobatto2;  // fvi_lobatto.cpp
+extern const SchemeInfo kFviLobatto3;  // fvi_lobatto.cpp
+extern const SchemeInfo kFviLobatto4;  // fvi_lobatto.cpp
 
 }  // namespace fracvi::internal

@@ -11,8 +11,12 @@
 namespace fracvi {
 
 double damping_spectral_radius(const MechanicalModel& model) {
-  const ModelMatrix mass = model.mass.symmetric_part();
-  const ModelMatrix damping = model.damping.symmetric_part();
+  return pencil_spectral_radius(model.damping, model.mass);
+}
+
+double pencil_spectral_radius(const ModelMatrix& matrix, const ModelMatrix& mass_matrix) {
+  const ModelMatrix mass = mass_matrix.symmetric_part();
+  const ModelMatrix damping = matrix.symmetric_part();
   const Eigen::Index d = mass.rows();
   if (damping.is_zero()) return 0.0;
   if (mass.is_diagonal() && damping.is_diagonal()) {

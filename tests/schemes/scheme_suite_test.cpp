@@ -182,6 +182,9 @@ class FailingPendula final : public Potential {
 struct OrderCase {
   std::string label;  ///< also the RecordProperty key: order_<label>_x / _v
   std::vector<std::size_t> steps;
+  /// Coarser steps for declared orders ≥ 4 (empty: `steps`): an order-6 error falls from 1e-8 to
+  /// the round-off plateau within three halvings, so the fit needs larger h to see the slope.
+  std::vector<std::size_t> high_order_steps;
   std::size_t samples = 0;
   std::function<InitialValueProblem(std::size_t)> make;
   Eigen::MatrixXd reference;
@@ -192,12 +195,18 @@ struct OrderCase {
 void expect_declared_order(const SchemeInfo& info, const OrderCase& c) {
   const InitialValueProblem probe = c.make(c.steps.front());
   const int declared = info.declared_order(probe.model);
+  // The scheme's order on smooth solutions (R = 0) decides the step range: a fourth- or
+  // sixth-order scheme reaches the round-off plateau within the default range even where its
+  // declared order is lower (fractional damping).
+  const int smooth_order = info.declared_order(MechanicalModel{});
+  const std::vector<std::size_t>& steps =
+      smooth_order >= 4 && !c.high_order_steps.empty() ? c.high_order_steps : c.steps;
   const Eigen::Index d = probe.x0.size();
   const bool has_v = c.reference.cols() == 2 * d;
   IntegratorOptions options;
   options.mirror = false;  // checked in (b)
   std::vector<double> hs, ex, ev;
-  for (const std::size_t n : c.steps) {
+  for (const std::size_t n : steps) {
     const InitialValueProblem problem = c.make(n);
     const Solution sol = integrate(problem, Method(info), options);
     ASSERT_TRUE(sol.ok()) << c.label << " N = " << n << ": " << sol.message;
@@ -232,7 +241,8 @@ OrderCase damped_oscillator_case(bool damped) {
   OrderCase c;
   c.label = damped ? "damped_oscillator" : "undamped_oscillator";
   c.steps = {400, 800, 1600, 3200, 6400};
-  c.samples = 100;
+  c.high_order_steps = {20, 40, 80, 160, 320};
+  c.samples = 10;
   c.make = [s, damped](std::size_t n) { return s.problem(n, damped); };
   c.reference = test::damped_oscillator_exact(s.M, damped ? s.R : Eigen::MatrixXd::Zero(2, 2), s.K,
                                               s.fhat, s.omega, s.x0, s.v0,
@@ -280,7 +290,8 @@ OrderCase caputo_data_case(double beta) {
   OrderCase c;
   c.label = label;
   c.steps = {512, 1024, 2048, 4096, 8192};
-  c.samples = 256;
+  c.high_order_steps = {8, 16, 32, 64, 128};
+  c.samples = 8;
   c.make = [ref, t_end](std::size_t n) {
     return test::oscillator_problem(ref, Convention::kCaputo, n, t_end);
   };
@@ -299,7 +310,8 @@ OrderCase pendula_case() {
   OrderCase c;
   c.label = "pendula_viscous";
   c.steps = {400, 800, 1600, 3200, 6400};
-  c.samples = 100;
+  c.high_order_steps = {20, 40, 80, 160, 320};
+  c.samples = 10;
   c.make = [](std::size_t n) { return test::forced_pendula(0.5, n); };
   const InitialValueProblem base = c.make(c.steps.front());
   c.reference = test::dopri5_reference(base.model, base.x0, base.v0,
@@ -669,7 +681,11 @@ TEST_P(SchemeSuite, StabilityBoundIsSharpAndEnforced) {
     RecordProperty(std::string(key) + "_below", sci(growth_below));
     RecordProperty(std::string(key) + "_above", sci(growth_above));
     EXPECT_LE(growth_below, kBoundedFactor) << label;
-    EXPECT_GE(growth_above, kBlowUpFactor) << label;
+    // A sufficient bound (StabilityBound::sharp false) may hold beyond h*: only the refusal is
+    // checked there (the scheme's own tests measure where it is sharp).
+    if (probe.sharp) {
+      EXPECT_GE(growth_above, kBlowUpFactor) << label;
+    }
 
     // The Integrator enforces the bound before step 1.
     EXPECT_NO_THROW({ const Integrator integ(below, method()); }) << label;

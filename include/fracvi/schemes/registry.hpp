@@ -28,6 +28,11 @@ struct StabilityBound {
   bool stable = true;
   /// The largest stable step (strict: h < largest_step); +∞ when every h is stable, 0 when none.
   double largest_step = 0.0;
+  /// The bound is the exact threshold of the linear test problem (a root of the characteristic
+  /// equation crosses the unit circle there, so a step just beyond it grows). False for a
+  /// sufficient condition: a measured table with a safety margin, or a bound that strong damping
+  /// may lift (the Lobatto schemes' undamped bound with R ≠ 0).
+  bool sharp = true;
   /// The bound as an inequality with this problem's numbers, e.g.
   /// "lambda_max(M^-1 R) (h/2)^(2-2alpha) = 1.43 must be < 1".
   std::string rule;

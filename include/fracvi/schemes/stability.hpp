@@ -13,6 +13,10 @@ namespace fracvi {
 /// 300 steps of the power iteration on M⁻¹R with Rayleigh quotients (relative change < 1e-10
 /// stops it earlier).
 double damping_spectral_radius(const MechanicalModel& model);
+/// λ_max(M⁻¹A) for a symmetric A (the same methods; damping_spectral_radius is A = R). For an
+/// indefinite A the power iteration's Rayleigh quotient tracks the largest |λ|, so the result is
+/// then a lower bound of max |λ| rather than of λ_max.
+double pencil_spectral_radius(const ModelMatrix& matrix, const ModelMatrix& mass);
 
 /// The bound of a scheme whose damping sum R h^{−2α} Σ ω_m x_{k−m} (the CQ `damping_sum` of order
 /// 2α) is evaluated at known states inside the midpoint step (the `DiscEqs` family): the root of

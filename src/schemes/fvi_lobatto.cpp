@@ -1,0 +1,831 @@
+// fvi-lobatto2, fvi-lobatto3, fvi-lobatto4: the restricted discrete variational principle with the
+// Lobatto–Galerkin discrete Lagrangian on s Lobatto nodes and the damping by the Lobatto IIIC
+// Runge–Kutta convolution quadrature of s^{2α} on the stage values (docs/theory/fvi_lobatto.md;
+// Hariz, Ober-Blöbaum & Jiménez, arXiv 2510.11082). s = 2, 3, 4; declared orders 2, 4, 6.
+//
+// On the interval [t_n, t_{n+1}] the curve is the polynomial through the stage values
+// X_n = (X_{n,1}, …, X_{n,s}), X_{n,a} ≈ x(t_n + c_a h), with X_{n,1} = x_n and X_{n,s} = x_{n+1}.
+// The interval force (fvi_lobatto.md §3), column k of a d × s block,
+//
+//   F_{n,k} = Σ_a b_a D_{ak} M V_{n,a} − h b_k [∇U(X_{n,k}, t_{n,k}) − f(t_{n,k}) + R G̃_{n,k}] −
+//   L_{n,k}, V_{n,a} = (1/h) Σ_k D_{ak} X_{n,k},   G̃_n = h^{−β} Σ_{j=0}^{n} W_j X̃_{n−j}   (β = 2α),
+//
+// with D the differentiation matrix of the Lobatto nodes, W_j the RKCQ block weights
+// (fractional/runge_kutta_cq.hpp), X̃ = X − P the stage values minus the Taylor polynomial
+// P(t) = x_0 + (t − t_0) v_0 (the split of fvi_bdf2.md §5.2), and L_{n,k} = h R ∫_0^1 ℓ_k(σ)
+// D^β P(t_n + σh) dσ the exact Galerkin moment of P's damping force (§2, "moments": the pointwise
+// value costs the order 2 − 2α at t_0 and is infinite there for Riemann–Liouville data).
+//
+// Step n (the momentum form, §4.1): unknowns X_{n,2 … s}; equations p_n + F_{n,1} = 0 and
+// F_{n,i} = 0 for the internal stages i = 2 … s − 1; then x_{n+1} = X_{n,s}, p_{n+1} = F_{n,s}.
+// Newton's matrix (4.2) has the blocks (K_D)_{im} M/h − h^{1−β} b_i (W_0)_{im} R − δ_{im} h b_i
+// ∇²U: the current interval's damping acts on the unknowns (implicit), and for s = 2 the potential
+// does not enter it at all (a linear solve per step for any U, as for Störmer–Verlet).
+//
+// Stability (§8): the conservative part is the Lobatto IIIA–IIIB method, conditionally stable
+// (λ_max(M⁻¹∇²U) h² < 4, 8, 30), and for 0 < 2α < 1 the spring-like part of the damping adds a
+// bound on λ_max(M⁻¹R) h^{2−2α} (measured table below). 1 ≤ 2α < 2: no damping bound found.
+#include <Eigen/Eigenvalues>
+#include <Eigen/SparseLU>
+#include <algorithm>
+#include <array>
+#include <boost/math/quadrature/gauss.hpp>
+#include <boost/math/special_functions/binomial.hpp>
+#include <boost/math/special_functions/gamma.hpp>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "fracvi/core/error.hpp"
+#include "fracvi/fractional/runge_kutta_cq.hpp"
+#include "fracvi/memory/block_history.hpp"
+#include "fracvi/schemes/stability.hpp"
+#include "fracvi/schemes/stepper.hpp"
+#include "fracvi/solve/midpoint_newton.hpp"
+#include "mass_solver.hpp"
+#include "scheme_rows.hpp"
+
+namespace fracvi::internal {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// ---------------------------------------------------------------------------------------------
+// The Lobatto nodes: tableau, differentiation matrix and the Lagrange basis in monomials.
+
+struct LobattoNodes {
+  int s = 0;
+  Eigen::VectorXd b, c;
+  Eigen::MatrixXd D;      // D_{ak} = ℓ_k'(c_a)
+  Eigen::MatrixXd BD;     // B D (row a scaled by b_a): column k of V·BD is Σ_a b_a D_{ak} V_a
+  Eigen::MatrixXd KD;     // Dᵀ B D
+  Eigen::MatrixXd basis;  // basis(k, m): coefficient of σ^m in ℓ_k(σ)
+  Eigen::MatrixXd slope;  // slope(k, m): coefficient of σ^m in ℓ_k'(σ)
+
+  explicit LobattoNodes(int stages) : s(stages) {
+    const ButcherTableau& tableau = lobatto_iiic(stages);
+    b = tableau.b;
+    c = tableau.c;
+    // Barycentric differentiation: D_{ak} = (w_k / w_a) / (c_a − c_k), D_{aa} = −Σ_{k≠a} D_{ak}.
+    Eigen::VectorXd w = Eigen::VectorXd::Ones(s);
+    for (int k = 0; k < s; ++k)
+      for (int m = 0; m < s; ++m)
+        if (m != k) w(k) /= c(k) - c(m);
+    D.setZero(s, s);
+    for (int a = 0; a < s; ++a) {
+      for (int k = 0; k < s; ++k) {
+        if (k == a) continue;
+        D(a, k) = (w(k) / w(a)) / (c(a) - c(k));
+        D(a, a) -= D(a, k);
+      }
+    }
+    BD = b.asDiagonal() * D;
+    KD = D.transpose() * BD;
+    // ℓ_k(c_a) = Σ_m basis(k, m) c_a^m = δ_{ka}: basis = (Vᵀ)^{−1}, V_{am} = c_a^m.
+    Eigen::MatrixXd vandermonde(s, s);
+    for (int a = 0; a < s; ++a)
+      for (int m = 0; m < s; ++m) vandermonde(a, m) = std::pow(c(a), m);
+    basis = vandermonde.transpose().fullPivLu().inverse();
+    slope.setZero(s, s);
+    for (int k = 0; k < s; ++k)
+      for (int m = 0; m + 1 < s; ++m) slope(k, m) = (m + 1) * basis(k, m + 1);
+  }
+};
+
+// ---------------------------------------------------------------------------------------------
+// The Galerkin moments of a power load φ(τ) = τ^γ on interval n (τ = t − t_0 = (n + σ) h):
+//   ∫_0^1 ℓ_k(σ) φ(t_n + σh) dσ  and  ∫_0^1 ℓ_k'(σ) φ(t_n + σh) dσ,
+// through μ_m(n) = ∫_0^1 σ^m (n + σ)^γ dσ: n = 0 exactly, 1/(m + γ + 1) (γ > −1: the
+// singularity at τ = 0 is integrable); 1 ≤ n < kSeriesFrom by Gauss–Legendre (the integrand is
+// analytic on a Bernstein ellipse of parameter ≥ 3 + √8, so 20 points give round-off); beyond, by
+// the binomial series n^γ Σ_j C(γ, j) n^{−j}/(m + j + 1) (terms fall by ≤ 2/n: one power per step).
+class PowerMoments {
+ public:
+  static constexpr std::size_t kSeriesFrom = 32;
+  static constexpr int kSeriesTerms = 14;
+
+  PowerMoments(const LobattoNodes& nodes, double gamma, double scale)
+      : nodes_(nodes), gamma_(gamma), scale_(scale), mu_(nodes.s) {
+    for (int j = 0; j < kSeriesTerms; ++j) binomial_[j] = generalized_binomial(gamma, j);
+  }
+
+  /// value(k) = scale ∫ℓ_k φ, derivative(k) = scale ∫ℓ_k' φ on interval n.
+  void operator()(std::size_t n, Eigen::Ref<Eigen::VectorXd> value,
+                  Eigen::Ref<Eigen::VectorXd> derivative) {
+    const int s = nodes_.s;
+    if (n == 0) {
+      for (int m = 0; m < s; ++m) mu_(m) = 1.0 / (m + gamma_ + 1.0);
+    } else if (n < kSeriesFrom) {
+      const double nn = static_cast<double>(n);
+      for (int m = 0; m < s; ++m) {
+        mu_(m) = boost::math::quadrature::gauss<double, 20>::integrate(
+            [&](double sigma) { return std::pow(sigma, m) * std::pow(nn + sigma, gamma_); }, 0.0,
+            1.0);
+      }
+    } else {
+      const double nn = static_cast<double>(n);
+      const double lead = std::pow(nn, gamma_);
+      for (int m = 0; m < s; ++m) {
+        double sum = 0.0, power = 1.0;
+        for (int j = 0; j < kSeriesTerms; ++j) {
+          sum += binomial_[j] * power / (m + j + 1.0);
+          power /= nn;
+        }
+        mu_(m) = lead * sum;
+      }
+    }
+    value.noalias() = scale_ * (nodes_.basis * mu_);
+    derivative.noalias() = scale_ * (nodes_.slope * mu_);
+  }
+
+ private:
+  static double generalized_binomial(double gamma, int j) {
+    double value = 1.0;
+    for (int i = 0; i < j; ++i) value *= (gamma - i) / (i + 1.0);
+    return value;
+  }
+  const LobattoNodes& nodes_;
+  double gamma_, scale_;
+  Eigen::VectorXd mu_;
+  std::array<double, kSeriesTerms> binomial_{};
+};
+
+// ---------------------------------------------------------------------------------------------
+// The stage system's Newton matrix, (s − 1)d × (s − 1)d, unknown stage m (1 … s − 1) at columns
+// (m − 1)d …, equation row i (0 … s − 2) at rows i·d …: dense LU, or sparse LU (Eigen's SparseLU,
+// COLAMD ordering) when M, R and ∇²U are stored sparse. The matrix is not symmetric (W_0 and the
+// row/column selection of K_D are not), so the symmetric factorisations of the midpoint schemes do
+// not apply.
+class StageMatrix {
+ public:
+  StageMatrix(const LobattoNodes& nodes, const Eigen::MatrixXd& w0, double h, double beta,
+              const ModelMatrix& mass, const ModelMatrix& damping, bool damped,
+              const Potential* potential, LinearSolver requested)
+      : s_(nodes.s),
+        d_(mass.rows()),
+        potential_(potential),
+        internal_hessians_(potential != nullptr && nodes.s > 2) {
+    const Eigen::Index n = (s_ - 1) * d_;
+    // Coefficients of M and R in block (i, m).
+    Eigen::MatrixXd mass_coeff(s_ - 1, s_ - 1), damping_coeff(s_ - 1, s_ - 1);
+    for (int i = 0; i + 1 < s_; ++i) {
+      for (int m = 1; m < s_; ++m) {
+        mass_coeff(i, m - 1) = nodes.KD(i, m) / h;
+        damping_coeff(i, m - 1) = damped ? -std::pow(h, 1.0 - beta) * nodes.b(i) * w0(i, m) : 0.0;
+      }
+    }
+    for (int i = 1; i + 1 < s_; ++i) hessian_coeff_.push_back(-h * nodes.b(i));
+    const bool structured =
+        mass.is_sparse() && (!damped || damping.is_sparse()) &&
+        (potential == nullptr || !internal_hessians_ || potential->has_sparse_hessian());
+    sparse_ = requested == LinearSolver::kSparse || requested == LinearSolver::kBanded ||
+              (requested == LinearSolver::kAuto && structured && n > kDenseUpTo);
+    if (!sparse_) {
+      if (n > kMaxDenseDimension) {
+        throw ValidationError(
+            "the stage system of this Lobatto scheme would be factored dense ((s-1)d = " +
+            std::to_string(n) + " > " + std::to_string(kMaxDenseDimension) +
+            "): store M and R sparse and give the potential a sparse Hessian");
+      }
+      const Eigen::MatrixXd m = mass.to_dense();
+      const Eigen::MatrixXd r = damped ? damping.to_dense() : Eigen::MatrixXd::Zero(d_, d_);
+      constant_.resize(n, n);
+      for (int i = 0; i + 1 < s_; ++i)
+        for (int m2 = 0; m2 + 1 < s_; ++m2)
+          constant_.block(i * d_, m2 * d_, d_, d_) =
+              mass_coeff(i, m2) * m + damping_coeff(i, m2) * r;
+      jacobian_.resize(n, n);
+      lu_ = Eigen::PartialPivLU<Eigen::MatrixXd>(n);
+      if (internal_hessians_) hessian_.resize(d_, d_);
+      return;
+    }
+    // Sparse: the constant triplets, then the Hessian pattern's positions (values per factor).
+    auto add = [&](const ModelMatrix& a, const Eigen::MatrixXd& coeff) {
+      const ModelMatrix::Sparse sa =
+          a.is_sparse() ? a.sparse() : ModelMatrix::Sparse(a.to_dense().sparseView());
+      for (int k = 0; k < sa.outerSize(); ++k)
+        for (ModelMatrix::Sparse::InnerIterator it(sa, k); it; ++it)
+          for (int i = 0; i + 1 < s_; ++i)
+            for (int m2 = 0; m2 + 1 < s_; ++m2)
+              if (coeff(i, m2) != 0.0)
+                triplets_.emplace_back(static_cast<int>(i * d_ + it.row()),
+                                       static_cast<int>(m2 * d_ + it.col()),
+                                       coeff(i, m2) * it.value());
+    };
+    add(mass, mass_coeff);
+    if (damped) add(damping, damping_coeff);
+    constant_count_ = triplets_.size();
+    if (internal_hessians_) {
+      if (potential->has_sparse_hessian()) {
+        pattern_ = potential->hessian_pattern();
+      } else {
+        for (Eigen::Index col = 0; col < d_; ++col)
+          for (Eigen::Index row = 0; row <= col; ++row) pattern_.push_back({row, col});
+        hessian_.resize(d_, d_);
+      }
+      hessian_values_.resize(pattern_.size());
+      for (int i = 1; i + 1 < s_; ++i) {
+        for (const Potential::HessianEntry& e : pattern_) {
+          triplets_.emplace_back(static_cast<int>(i * d_ + e.row),
+                                 static_cast<int>((i - 1) * d_ + e.col), 0.0);
+          if (e.row != e.col)
+            triplets_.emplace_back(static_cast<int>(i * d_ + e.col),
+                                   static_cast<int>((i - 1) * d_ + e.row), 0.0);
+        }
+      }
+    }
+    sparse_matrix_.resize(n, n);
+    sparse_matrix_.setFromTriplets(triplets_.begin(), triplets_.end());
+    sparse_matrix_.makeCompressed();
+    sparse_lu_.analyzePattern(sparse_matrix_);
+  }
+
+  [[nodiscard]] bool needs_hessians() const { return internal_hessians_; }
+  [[nodiscard]] bool is_sparse() const { return sparse_; }
+
+  /// Forms J = constant part − h b_i ∇²U(X_i, t_i) (internal stages i = 2 … s − 1, columns of
+  /// `stages`) and factors it. False when singular.
+  bool factor(const Eigen::MatrixXd& stages, const Eigen::VectorXd& times) {
+    if (!sparse_) {
+      jacobian_ = constant_;
+      for (int i = 1; internal_hessians_ && i + 1 < s_; ++i) {
+        potential_->hessian(stages.col(i), times(i), hessian_);
+        jacobian_.block(i * d_, (i - 1) * d_, d_, d_) += hessian_coeff_[i - 1] * hessian_;
+      }
+      lu_.compute(jacobian_);
+      // PartialPivLU does not report singularity: a zero pivot shows as a non-finite solve.
+      return lu_.matrixLU().diagonal().cwiseAbs().minCoeff() > 0.0;
+    }
+    std::size_t at = constant_count_;
+    for (int i = 1; internal_hessians_ && i + 1 < s_; ++i) {
+      if (potential_->has_sparse_hessian()) {
+        potential_->hessian_values(stages.col(i), times(i), hessian_values_);
+      } else {
+        potential_->hessian(stages.col(i), times(i), hessian_);
+        for (std::size_t e = 0; e < pattern_.size(); ++e)
+          hessian_values_[e] = hessian_(pattern_[e].row, pattern_[e].col);
+      }
+      for (std::size_t e = 0; e < pattern_.size(); ++e) {
+        const double v = hessian_coeff_[i - 1] * hessian_values_[e];
+        set_value(at++, v);
+        if (pattern_[e].row != pattern_[e].col) set_value(at++, v);
+      }
+    }
+    if (internal_hessians_) {
+      sparse_matrix_.setFromTriplets(triplets_.begin(), triplets_.end());
+      sparse_matrix_.makeCompressed();
+    }
+    sparse_lu_.factorize(sparse_matrix_);
+    return sparse_lu_.info() == Eigen::Success;
+  }
+
+  /// rhs ← J⁻¹ rhs.
+  void solve_in_place(Eigen::VectorXd& rhs, Eigen::VectorXd& scratch) const {
+    if (!sparse_) {
+      scratch.noalias() = lu_.solve(rhs);
+    } else {
+      scratch = sparse_lu_.solve(rhs);
+    }
+    rhs.swap(scratch);
+  }
+
+ private:
+  void set_value(std::size_t at, double value) {
+    triplets_[at] = Eigen::Triplet<double>(triplets_[at].row(), triplets_[at].col(), value);
+  }
+
+  // Up to this size the stage matrix is factored dense even for sparse storage (a d = 20 problem
+  // file stores its scalar mass sparse; dense LU is faster there and allocation-free).
+  static constexpr Eigen::Index kDenseUpTo = 96;
+
+  int s_;
+  Eigen::Index d_;
+  const Potential* potential_;
+  bool internal_hessians_;
+  bool sparse_ = false;
+  std::vector<double> hessian_coeff_;  // −h b_i, internal stages
+  // Dense.
+  Eigen::MatrixXd constant_, jacobian_, hessian_;
+  Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
+  // Sparse.
+  std::vector<Eigen::Triplet<double>> triplets_;
+  std::size_t constant_count_ = 0;
+  std::vector<Potential::HessianEntry> pattern_;
+  std::vector<double> hessian_values_;
+  Eigen::SparseMatrix<double> sparse_matrix_;
+  Eigen::SparseLU<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> sparse_lu_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// The stepper.
+
+class LobattoStepper final : public Stepper {
+ public:
+  LobattoStepper(int stages, const InitialValueProblem& problem, const IntegratorOptions& options)
+      : problem_(problem),
+        options_(options),
+        nodes_(stages),
+        s_(stages),
+        beta_(problem.model.damping_order()),
+        d_(problem.model.dimension()),
+        h_(problem.step_size()),
+        damped_(!problem.model.is_undamped()),
+        has_forcing_(static_cast<bool>(problem.model.forcing)),
+        u_time_dependent_(problem.model.potential && problem.model.potential->is_time_dependent()),
+        diagnostics_(options.diagnostics),
+        potential_(problem.model.potential.get()),
+        w0_(RungeKuttaCq{stages, beta_, 0}.weight(0)),
+        mass_(problem.model.mass.symmetric_part()),
+        damping_(problem.model.damping.symmetric_part()),
+        mass_solver_(mass_, damping_, options.linear_solver),
+        stage_matrix_(nodes_, w0_, h_, beta_, mass_, damping_, damped_, potential_,
+                      options.linear_solver),
+        linear_(s_ == 2 || potential_ == nullptr || potential_->has_constant_hessian()),
+        h_power_(std::pow(h_, -beta_)) {
+    const bool caputo = problem.model.convention == Convention::kCaputo;
+    split_ = damped_ && beta_ > 0.0;
+    // D^β P per unit R (fvi_midpoint.cpp, same cases): v_0 τ^{1−β}/Γ(2−β) (0 < β < 2; none for
+    // Caputo β > 1), and for Riemann–Liouville 0 < β < 1 x_0 τ^{−β}/Γ(1−β). Moments scale h^γ.
+    if (split_ && !(caputo && beta_ > 1.0)) {
+      velocity_load_ = std::make_unique<PowerMoments>(
+          nodes_, 1.0 - beta_, std::pow(h_, 1.0 - beta_) / boost::math::tgamma(2.0 - beta_));
+    }
+    if (split_ && !caputo && beta_ < 1.0) {
+      position_load_ = std::make_unique<PowerMoments>(
+          nodes_, -beta_, std::pow(h_, -beta_) / boost::math::tgamma(1.0 - beta_));
+    }
+    for (Eigen::MatrixXd* m : {&delta_, &stages_, &tilde_, &memory_, &velocities_, &kinetic_,
+                               &forces_, &damping_forces_, &interval_force_, &loads_}) {
+      m->setZero(d_, s_);
+    }
+    for (Eigen::VectorXd* v : {&x_, &v_, &p_, &r_v0_, &r_x0_, &scratch_d_}) v->setZero(d_);
+    times_.setZero(s_);
+    for (Eigen::VectorXd* v : {&load_v_, &load_x_, &work_v_, &work_x_}) v->setZero(s_);
+    residual_.setZero((s_ - 1) * d_);
+    solve_scratch_.setZero((s_ - 1) * d_);
+    if (damped_) {
+      damping_.multiply(problem.x0, r_x0_);
+      damping_.multiply(problem.v0, r_v0_);
+      const RungeKuttaCq known{s_, beta_, /*lag=*/1};
+      // β = 0: W_j = 0 for j ≥ 1, nothing to remember.
+      if (beta_ > 0.0) {
+        history_ = make_block_history(options.history, known, d_, problem.steps,
+                                      options.history_tolerance);
+        history_->set_threads(options.threads);
+      }
+    }
+    x_ = problem.x0;
+    v_ = problem.v0;
+    mass_.multiply(problem.v0, p_);
+    work_ = diagnostics_ ? 0.0 : kNaN;
+    if (linear_) {
+      stages_.colwise() = problem.x0;
+      for (int a = 0; a < s_; ++a) times_(a) = problem.t0 + nodes_.c(a) * h_;
+      if (!stage_matrix_.factor(stages_, times_)) {
+        throw ValidationError("the stage system of " + std::string(name()) +
+                              " is singular for this problem (h = " + format_number(h_) + ")");
+      }
+    }
+  }
+
+  [[nodiscard]] const Eigen::VectorXd& position() const override { return x_; }
+  [[nodiscard]] const Eigen::VectorXd& velocity() const override { return v_; }
+  [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
+  [[nodiscard]] double work() const override { return work_; }
+  [[nodiscard]] LinearSolver linear_solver() const override {
+    return stage_matrix_.is_sparse() ? LinearSolver::kSparse : LinearSolver::kDense;
+  }
+  [[nodiscard]] std::size_t history_bytes() const override {
+    return history_ ? history_->memory_bytes() : 0;
+  }
+
+ private:
+  [[nodiscard]] std::string_view name() const {
+    return s_ == 2 ? "fvi-lobatto2" : (s_ == 3 ? "fvi-lobatto3" : "fvi-lobatto4");
+  }
+  Status advance() override;
+  // Columns a ∈ [first, last) of forces_: ∇U(X_a, t_a) − f(t_a).
+  void stage_forces(int first, int last);
+  // F_n from delta_ (stages_ = x_n + delta_), columns [0, last): interval_force_.
+  void interval_force(int last);
+
+  const InitialValueProblem& problem_;
+  IntegratorOptions options_;
+  LobattoNodes nodes_;
+  int s_;
+  double beta_;
+  Eigen::Index d_;
+  double h_;
+  bool damped_, has_forcing_, u_time_dependent_, diagnostics_;
+  const Potential* potential_;
+  Eigen::MatrixXd w0_;
+  ModelMatrix mass_, damping_;
+  MassSolver mass_solver_;
+  StageMatrix stage_matrix_;
+  bool linear_;
+  double h_power_;  // h^{−β}
+  bool split_ = false;
+  std::unique_ptr<PowerMoments> velocity_load_, position_load_;
+  std::unique_ptr<BlockHistory> history_;
+
+  std::size_t n_ = 0;
+  Eigen::VectorXd x_, v_, p_, r_v0_, r_x0_, scratch_d_, times_, load_v_, load_x_, work_v_, work_x_,
+      residual_, solve_scratch_;
+  // d × s blocks, column a = stage a: increments X_a − x_n, stage values, X̃ = X − P, the known
+  // memory Σ_{j≥1} X̃_{n−j} W_jᵀ, V, M V B D, ∇U − f, R G̃, F_n, L_n.
+  Eigen::MatrixXd delta_, stages_, tilde_, memory_, velocities_, kinetic_, forces_, damping_forces_,
+      interval_force_, loads_;
+  double work_ = 0.0;
+};
+
+void LobattoStepper::stage_forces(int first, int last) {
+  for (int a = first; a < last; ++a) {
+    auto g = forces_.col(a);
+    if (potential_ != nullptr) {
+      potential_->gradient(stages_.col(a), times_(a), g);
+    } else {
+      g.setZero();
+    }
+    if (has_forcing_) {
+      problem_.model.forcing(times_(a), scratch_d_);
+      g -= scratch_d_;
+    }
+  }
+}
+
+void LobattoStepper::interval_force(int last) {
+  // V = Δ Dᵀ / h (Σ_k D_{ak} = 0, so increments suffice: no cancellation of x_n), then
+  // Σ_a b_a D_{ak} M V_a = (M V B D)_k.
+  velocities_.noalias() = delta_ * nodes_.D.transpose();
+  velocities_ /= h_;
+  for (int a = 0; a < s_; ++a) mass_.multiply(velocities_.col(a), kinetic_.col(a));
+  if (damped_) {
+    // G̃ = h^{−β}(X̃ W_0ᵀ + memory); only the columns [0, last) are needed.
+    tilde_ = delta_;
+    tilde_.colwise() += x_;
+    if (split_) {
+      for (int a = 0; a < s_; ++a) {
+        tilde_.col(a) -= problem_.x0;
+        tilde_.col(a) -= (times_(a) - problem_.t0) * problem_.v0;
+      }
+    }
+  }
+  for (int k = 0; k < last; ++k) {
+    auto f = interval_force_.col(k);
+    f.noalias() = kinetic_ * nodes_.BD.col(k);
+    f -= (h_ * nodes_.b(k)) * forces_.col(k);
+    if (damped_) {
+      scratch_d_.noalias() = tilde_ * w0_.row(k).transpose();
+      scratch_d_ += memory_.col(k);
+      damping_.multiply(scratch_d_, damping_forces_.col(k));
+      damping_forces_.col(k) *= h_power_;
+      f -= (h_ * nodes_.b(k)) * damping_forces_.col(k);
+      f -= loads_.col(k);
+    }
+  }
+}
+
+Status LobattoStepper::advance() {
+  const std::size_t n = n_;
+  const double tn = problem_.time(static_cast<double>(n));
+  for (int a = 0; a < s_; ++a) times_(a) = tn + nodes_.c(a) * h_;
+  // Known this step: the memory of the earlier intervals and the Taylor polynomial's loads.
+  if (damped_) {
+    if (history_ && history_->size() > 0) {
+      history_->sum(memory_);
+    } else {
+      memory_.setZero();
+    }
+    loads_.setZero();
+    if (velocity_load_) {
+      (*velocity_load_)(n, load_v_, work_v_);
+      for (int a = 0; a < s_; ++a) loads_.col(a) += (h_ * load_v_(a)) * r_v0_;
+    }
+    if (position_load_) {
+      (*position_load_)(n, load_x_, work_x_);
+      for (int a = 0; a < s_; ++a) loads_.col(a) += (h_ * load_x_(a)) * r_x0_;
+    }
+  }
+  // Guess: the stages on the line x_n + (t − t_n) v_n.
+  mass_solver_.inverse(p_, v_);
+  for (int a = 0; a < s_; ++a) delta_.col(a) = (nodes_.c(a) * h_) * v_;
+  stages_ = delta_;
+  stages_.colwise() += x_;
+  stage_forces(0, s_ - 1);
+  const NewtonOptions& newton = options_.newton;
+  int iterations = 0;
+  for (;;) {
+    interval_force(s_ - 1);
+    // Residual rows: p_n + F_{n,1}, F_{n,i} (i = 2 … s − 1); Newton: J δ = −r.
+    for (int i = 0; i + 1 < s_; ++i) residual_.segment(i * d_, d_) = -interval_force_.col(i);
+    residual_.head(d_) -= p_;
+    if (!residual_.allFinite()) return fail(Status::kNonFinite, "non-finite stage residual");
+    if (!linear_ && !stage_matrix_.factor(stages_, times_)) {
+      return fail(Status::kNewtonFailure,
+                  "the stage system's Newton matrix could not be factored (singular)");
+    }
+    stage_matrix_.solve_in_place(residual_, solve_scratch_);
+    ++iterations;
+    double correction = 0.0;
+    for (int m = 1; m < s_; ++m) {
+      delta_.col(m) += residual_.segment((m - 1) * d_, d_);
+      correction = std::max(correction, residual_.segment((m - 1) * d_, d_).cwiseAbs().maxCoeff());
+    }
+    stages_ = delta_;
+    stages_.colwise() += x_;
+    if (!stages_.allFinite()) return fail(Status::kNonFinite, "non-finite stage values");
+    if (linear_) break;  // the equations are linear in the stages: one correction is exact
+    stage_forces(1, s_ - 1);
+    // The stopping rule of NewtonOptions, floored at the round-off of the stage equations: the
+    // memory acts on X̃ = X − P, and P(t) = x_0 + (t − t_0) v_0 grows with t, so the corrections
+    // stall at a few ulps of max|X̃| (measured: 9e-17 against a requested 8.7e-17 with |X| =
+    // 0.009, |X̃| = 24 at t = 125), which a tight relative tolerance could otherwise never meet.
+    const double scale = std::max(stages_.cwiseAbs().maxCoeff(), x_.cwiseAbs().maxCoeff());
+    const double roundoff_scale = damped_ ? std::max(scale, tilde_.cwiseAbs().maxCoeff()) : scale;
+    const double tolerance =
+        std::max(newton.absolute_tolerance + newton.relative_tolerance * scale,
+                 4.0 * std::numeric_limits<double>::epsilon() * roundoff_scale);
+    if (correction <= tolerance) break;
+    if (iterations >= newton.max_iterations) {
+      set_iterations(iterations);
+      return fail(Status::kNewtonFailure,
+                  "Newton on the stage system did not converge within %d iterations (last "
+                  "correction %.3e > tolerance %.3e)",
+                  iterations, correction, tolerance);
+    }
+  }
+  set_iterations(iterations);
+  // p_{n+1} = F_{n,s}, the right discrete Legendre transform (with the damping).
+  stage_forces(s_ - 1, s_);
+  if (linear_) stage_forces(1, s_ - 1);  // (the Newton loop left them at the accepted stages)
+  interval_force(s_);
+  if (!interval_force_.allFinite()) return fail(Status::kNonFinite, "non-finite momentum");
+  if (diagnostics_) {
+    // W += h Σ_a b_a (R G̃_a − f_a)·V_a + ∫ R D^βP · ẋ_h dt (exact moments) − ∫ ∂_t U dt.
+    for (int a = 0; a < s_; ++a) {
+      double power = 0.0;
+      if (damped_) power += damping_forces_.col(a).dot(velocities_.col(a));
+      if (has_forcing_) {
+        problem_.model.forcing(times_(a), scratch_d_);
+        power -= scratch_d_.dot(velocities_.col(a));
+      }
+      work_ += h_ * nodes_.b(a) * power;
+      if (damped_ && velocity_load_) work_ += work_v_(a) * r_v0_.dot(delta_.col(a));
+      if (damped_ && position_load_) work_ += work_x_(a) * r_x0_.dot(delta_.col(a));
+      if (u_time_dependent_) {
+        // ∂_t U at the stage by a central difference (step ε^{1/3} scale: error ~ 1e-11 relative).
+        const double dt = 6e-6 * std::max(1.0, std::abs(times_(a)));
+        const double dudt = (potential_->value(stages_.col(a), times_(a) + dt) -
+                             potential_->value(stages_.col(a), times_(a) - dt)) /
+                            (2.0 * dt);
+        work_ -= h_ * nodes_.b(a) * dudt;
+      }
+    }
+  }
+  if (history_) {
+    tilde_ = delta_;
+    tilde_.colwise() += x_;
+    if (split_) {
+      for (int a = 0; a < s_; ++a) {
+        tilde_.col(a) -= problem_.x0;
+        tilde_.col(a) -= (times_(a) - problem_.t0) * problem_.v0;
+      }
+    }
+    history_->push(tilde_);
+  }
+  x_ = stages_.col(s_ - 1);
+  p_ = interval_force_.col(s_ - 1);
+  mass_solver_.inverse(p_, v_);
+  if (!x_.allFinite() || !v_.allFinite()) return fail(Status::kNonFinite, "non-finite state");
+  ++n_;
+  return Status::kSuccess;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Registry: stability bounds (fvi_lobatto.md §8.2).
+
+// κ* = sup of λ_max(M⁻¹∇²U) h² for the undamped Lobatto IIIA–IIIB method (ωh < 2, 2√2, √30).
+double undamped_bound(int s) {
+  return s == 2 ? 4.0 : (s == 3 ? 8.0 : 30.0);
+}
+
+// ρ*_0(s, β): the first λ_max(M⁻¹R) h^{2−β} at which a root of the characteristic function enters
+// the unit disc, κ → 0, measured on β = 0.1, 0.25, 0.5, 0.75, 0.9 (fvi_lobatto.md §8.2; β = 0 is
+// the spring limit ρ* = κ*). Between table points the smaller neighbour is used (the bound is not
+// monotone in β for s = 3, 4), and 0.9 ≤ β < 1 uses the β = 0.9 value (the bound grows without
+// limit as β → 1). Only for 0 < β < 1.
+double damping_bound(int s, double beta) {
+  static constexpr std::array<double, 6> kBeta{0.0, 0.1, 0.25, 0.5, 0.75, 0.9};
+  static constexpr std::array<std::array<double, 6>, 3> kRho{{
+      {4.0, 4.00, 4.13, 4.92, 8.02, 18.1},
+      {8.0, 7.90, 20.2, 19.5, 25.7, 50.6},
+      {30.0, 26.9, 55.0, 46.5, 53.3, 96.8},
+  }};
+  const auto& rho = kRho[static_cast<std::size_t>(s - 2)];
+  if (beta >= kBeta.back()) return rho.back();
+  for (std::size_t i = 0; i + 1 < kBeta.size(); ++i) {
+    if (beta == kBeta[i + 1]) return rho[i + 1];
+    if (beta < kBeta[i + 1]) return std::min(rho[i], rho[i + 1]);
+  }
+  return rho.back();
+}
+
+// λ_max(M⁻¹∇²U(x_0, t_0)) (0 without a potential; the linearisation at the start for nonlinear U).
+double stiffness_spectral_radius(const InitialValueProblem& problem) {
+  const Potential* potential = problem.model.potential.get();
+  if (potential == nullptr) return 0.0;
+  const Eigen::Index d = problem.model.dimension();
+  ModelMatrix hessian;
+  if (potential->has_sparse_hessian()) {
+    const std::vector<Potential::HessianEntry> pattern = potential->hessian_pattern();
+    std::vector<double> values(pattern.size());
+    potential->hessian_values(problem.x0, problem.t0, values);
+    std::vector<Eigen::Triplet<double>> triplets;
+    for (std::size_t e = 0; e < pattern.size(); ++e) {
+      triplets.emplace_back(static_cast<int>(pattern[e].row), static_cast<int>(pattern[e].col),
+                            values[e]);
+      if (pattern[e].row != pattern[e].col)
+        triplets.emplace_back(static_cast<int>(pattern[e].col), static_cast<int>(pattern[e].row),
+                              values[e]);
+    }
+    ModelMatrix::Sparse sparse(d, d);
+    sparse.setFromTriplets(triplets.begin(), triplets.end());
+    hessian = ModelMatrix(sparse);
+  } else {
+    Eigen::MatrixXd dense(d, d);
+    potential->hessian(problem.x0, problem.t0, dense);
+    hessian = ModelMatrix(dense);
+  }
+  return pencil_spectral_radius(hessian, problem.model.mass);
+}
+
+StabilityBound lobatto_bound(int s, const InitialValueProblem& problem) {
+  const double beta = problem.model.damping_order();
+  const double lambda_k = std::max(0.0, stiffness_spectral_radius(problem));
+  const double lambda_r =
+      problem.model.is_undamped() ? 0.0 : damping_spectral_radius(problem.model);
+  const double kappa_star = undamped_bound(s);
+  const bool damping_limited = lambda_r > 0.0 && beta > 0.0 && beta < 1.0;
+  // β = 0: R is a second spring (D^0 x = x): κ + ρ < κ*.
+  const bool spring = lambda_r > 0.0 && beta == 0.0;
+  const double rho_star = damping_limited ? damping_bound(s, beta) : kappa_star;
+  // Admissible iff κ < κ* and (damping-limited) ρ < ρ*_0 (1 − κ/κ*): both sides monotone in h.
+  auto margin = [&](double h) {
+    const double kappa = lambda_k * h * h;
+    if (spring) return (kappa + lambda_r * h * h) / kappa_star;
+    if (!damping_limited) return kappa / kappa_star;
+    const double rho = lambda_r * std::pow(h, 2.0 - beta);
+    if (kappa >= kappa_star) return kappa / kappa_star;
+    return std::max(kappa / kappa_star, rho / (rho_star * (1.0 - kappa / kappa_star)));
+  };
+  StabilityBound bound;
+  // Sharp: the undamped bound (a root crosses the circle at κ*, measured 0.98/1.02) and the
+  // damping bound at the measured β (0.9/1.1, fvi_lobatto.md §8.2). With damping the undamped
+  // bound is only sufficient (strong damping stabilises beyond κ*), and between table points the
+  // smaller neighbour is taken.
+  bound.sharp = lambda_r == 0.0;
+  const double h = problem.step_size();
+  const double value = margin(h);
+  bound.stable = value < 1.0;
+  if (lambda_k == 0.0 && !damping_limited && !spring) {
+    bound.largest_step = std::numeric_limits<double>::infinity();
+  } else {
+    double lo = 0.0, hi = std::max(h, 1e-300);
+    while (margin(hi) < 1.0 && hi < 1e300) hi *= 2.0;
+    for (int it = 0; it < 200 && hi - lo > 1e-15 * hi; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (margin(mid) < 1.0 ? lo : hi) = mid;
+    }
+    bound.largest_step = hi;
+  }
+  const std::string kappa = format_number(lambda_k * h * h);
+  std::string rule = "lambda_max(M^-1 Hess U(x0)) h^2 = " + kappa + " must be < " +
+                     format_number(kappa_star) + " (the undamped Lobatto IIIA-IIIB bound)";
+  if (spring) {
+    rule = "(lambda_max(M^-1 Hess U(x0)) + lambda_max(M^-1 R)) h^2 = " +
+           format_number((lambda_k + lambda_r) * h * h) + " must be < " +
+           format_number(kappa_star) + " (2alpha = 0: R is a spring)";
+  } else if (damping_limited) {
+    rule += ", and lambda_max(M^-1 R) h^(2-2alpha) = " +
+            format_number(lambda_r * std::pow(h, 2.0 - beta)) + " must be < " +
+            format_number(rho_star) + " (1 - " + kappa + "/" + format_number(kappa_star) +
+            ") (measured damping bound for 0 < 2alpha < 1)";
+  }
+  bound.rule = rule;
+  return bound;
+}
+
+std::string lobatto_applicability(const InitialValueProblem& problem) {
+  const double beta = problem.model.damping_order();
+  if (beta < 2.0 || problem.model.is_undamped()) return {};
+  return "model.alpha = 1 (2alpha = 2) is outside 0 <= 2alpha < 2 (stability of the Lobatto "
+         "RKCQ damping not measured there); use fvi-gl or fvi-bdf2";
+}
+
+// 2s − 2 where the solution is smooth at t_0 (integer 2α: the RKCQ is exact and local, or R = 0);
+// 2 for fractional damping, where x − P = O(t^{2+…}) with non-smooth powers and the pointwise
+// forcing at t_0 cap the order (fvi_lobatto.md §7.3–7.4: 3.5 for s = 3, 4 at 2α = 0.6, 2–2.4 at
+// 2α = 1.5; the Lubich correction weights that would lift it are not implemented).
+//
+// s = 2 with 1 < 2α < 2: the positions keep order 2, but the node momentum p_{n+1} = F_{n,2}
+// carries h b_2 R G_{n,2}, the RKCQ's stage value of D^{2α}x, whose error near t_0 is of order
+// q + 1 − 2α (stage order q = 1): velocities of order 3 − 2α (measured 1.54 at 2α = 1.5; s = 3:
+// 4 − 2α = 2.5, measured 2.49). The declared order counts the velocities too: 1 there.
+int lobatto_order(int s, const MechanicalModel& model) {
+  const double beta = model.damping_order();
+  if (model.is_undamped() || beta == 0.0 || beta == 1.0) return 2 * s - 2;
+  if (s == 2 && beta > 1.0) return 1;
+  return 2;
+}
+
+template <int S>
+std::unique_ptr<Stepper> make_lobatto(const InitialValueProblem& problem,
+                                      const IntegratorOptions& options) {
+  return std::make_unique<LobattoStepper>(S, problem, options);
+}
+
+constexpr std::string_view kLobattoReference =
+    "Hariz, Ober-Bloebaum & Jimenez, arXiv 2510.11082 (github.com/khaledharizb/RKCQ); "
+    "docs/theory/fvi_lobatto.md";
+constexpr std::string_view kLobattoStability2 =
+    "lambda_max(M^-1 Hess U) h^2 < 4; 0 < 2alpha < 1: also a measured bound on "
+    "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)";
+constexpr std::string_view kLobattoStability3 =
+    "lambda_max(M^-1 Hess U) h^2 < 8; 0 < 2alpha < 1: also a measured bound on "
+    "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)";
+constexpr std::string_view kLobattoStability4 =
+    "lambda_max(M^-1 Hess U) h^2 < 30; 0 < 2alpha < 1: also a measured bound on "
+    "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)";
+
+}  // namespace
+
+const SchemeInfo kFviLobatto2{
+    .name = "fvi-lobatto2",
+    .summary =
+        "FVI with the Lobatto-Galerkin discrete Lagrangian on 2 nodes (Stoermer-Verlet) and "
+        "Lobatto IIIC (s = 2) Runge-Kutta CQ memory on the stage values; implicit damping",
+    .reference = kLobattoReference,
+    .order_rule = "2 (velocities 3 - 2alpha for 1 < 2alpha < 2)",
+    .stages = 2,
+    .variational = true,
+    .variational_quadrature = std::nullopt,
+    .has_mirror = false,
+    .exact_balance = false,
+    .fast_history = true,
+    .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
+    .applies_to = "0 <= 2alpha < 2",
+    .stability_rule = kLobattoStability2,
+    .declared_order = [](const MechanicalModel& model) { return lobatto_order(2, model); },
+    .applicability = lobatto_applicability,
+    .stability = [](const InitialValueProblem& problem) { return lobatto_bound(2, problem); },
+    .make_stepper = make_lobatto<2>,
+};
+
+const SchemeInfo kFviLobatto3{
+    .name = "fvi-lobatto3",
+    .summary =
+        "FVI with the Lobatto-Galerkin discrete Lagrangian on 3 nodes and Lobatto IIIC (s = 3) "
+        "Runge-Kutta CQ memory on the stage values; implicit damping",
+    .reference = kLobattoReference,
+    .order_rule = "4 (2 for fractional 2alpha: regularity at t0)",
+    .stages = 3,
+    .variational = true,
+    .variational_quadrature = std::nullopt,
+    .has_mirror = false,
+    .exact_balance = false,
+    .fast_history = true,
+    .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
+    .applies_to = "0 <= 2alpha < 2",
+    .stability_rule = kLobattoStability3,
+    .declared_order = [](const MechanicalModel& model) { return lobatto_order(3, model); },
+    .applicability = lobatto_applicability,
+    .stability = [](const InitialValueProblem& problem) { return lobatto_bound(3, problem); },
+    .make_stepper = make_lobatto<3>,
+};
+
+const SchemeInfo kFviLobatto4{
+    .name = "fvi-lobatto4",
+    .summary =
+        "FVI with the Lobatto-Galerkin discrete Lagrangian on 4 nodes and Lobatto IIIC (s = 4) "
+        "Runge-Kutta CQ memory on the stage values; implicit damping",
+    .reference = kLobattoReference,
+    .order_rule = "6 (2 for fractional 2alpha: regularity at t0)",
+    .stages = 4,
+    .variational = true,
+    .variational_quadrature = std::nullopt,
+    .has_mirror = false,
+    .exact_balance = false,
+    .fast_history = true,
+    .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
+    .applies_to = "0 <= 2alpha < 2",
+    .stability_rule = kLobattoStability4,
+    .declared_order = [](const MechanicalModel& model) { return lobatto_order(4, model); },
+    .applicability = lobatto_applicability,
+    .stability = [](const InitialValueProblem& problem) { return lobatto_bound(4, problem); },
+    .make_stepper = make_lobatto<4>,
+};
+
+}  // namespace fracvi::internal
