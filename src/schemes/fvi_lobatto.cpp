@@ -161,20 +161,29 @@ class PowerMoments {
 // not apply.
 class StageMatrix {
  public:
-  StageMatrix(const LobattoNodes& nodes, const Eigen::MatrixXd& w0, double h, double beta,
+  /// Block row r holds the equation of stage r + first_equation, block column c the unknown
+  /// stage c + first_unknown: (0, 1) for the x-step (equations of stages 1 … s − 1 in the paper's
+  /// numbering, unknowns 2 … s), (1, 0) for the mirror's y-step (equations 2 … s, unknowns
+  /// 1 … s − 1). `current` is the weight of the interval's own stages (W_0, or J W_0 J).
+  StageMatrix(const LobattoNodes& nodes, const Eigen::MatrixXd& current, double h, double beta,
               const ModelMatrix& mass, const ModelMatrix& damping, bool damped,
-              const Potential* potential, LinearSolver requested)
+              const Potential* potential, LinearSolver requested, int first_equation = 0,
+              int first_unknown = 1)
       : s_(nodes.s),
         d_(mass.rows()),
         potential_(potential),
-        internal_hessians_(potential != nullptr && nodes.s > 2) {
+        internal_hessians_(potential != nullptr && nodes.s > 2),
+        first_equation_(first_equation),
+        first_unknown_(first_unknown) {
     const Eigen::Index n = (s_ - 1) * d_;
-    // Coefficients of M and R in block (i, m).
+    // Coefficients of M and R in block (r, c).
     Eigen::MatrixXd mass_coeff(s_ - 1, s_ - 1), damping_coeff(s_ - 1, s_ - 1);
-    for (int i = 0; i + 1 < s_; ++i) {
-      for (int m = 1; m < s_; ++m) {
-        mass_coeff(i, m - 1) = nodes.KD(i, m) / h;
-        damping_coeff(i, m - 1) = damped ? -std::pow(h, 1.0 - beta) * nodes.b(i) * w0(i, m) : 0.0;
+    for (int r = 0; r + 1 < s_; ++r) {
+      const int e = r + first_equation;
+      for (int c = 0; c + 1 < s_; ++c) {
+        const int u = c + first_unknown;
+        mass_coeff(r, c) = nodes.KD(e, u) / h;
+        damping_coeff(r, c) = damped ? -std::pow(h, 1.0 - beta) * nodes.b(e) * current(e, u) : 0.0;
       }
     }
     for (int i = 1; i + 1 < s_; ++i) hessian_coeff_.push_back(-h * nodes.b(i));
@@ -228,12 +237,12 @@ class StageMatrix {
       }
       hessian_values_.resize(pattern_.size());
       for (int i = 1; i + 1 < s_; ++i) {
+        const Eigen::Index row = (i - first_equation_) * d_, col = (i - first_unknown_) * d_;
         for (const Potential::HessianEntry& e : pattern_) {
-          triplets_.emplace_back(static_cast<int>(i * d_ + e.row),
-                                 static_cast<int>((i - 1) * d_ + e.col), 0.0);
+          triplets_.emplace_back(static_cast<int>(row + e.row), static_cast<int>(col + e.col), 0.0);
           if (e.row != e.col)
-            triplets_.emplace_back(static_cast<int>(i * d_ + e.col),
-                                   static_cast<int>((i - 1) * d_ + e.row), 0.0);
+            triplets_.emplace_back(static_cast<int>(row + e.col), static_cast<int>(col + e.row),
+                                   0.0);
         }
       }
     }
@@ -253,7 +262,8 @@ class StageMatrix {
       jacobian_ = constant_;
       for (int i = 1; internal_hessians_ && i + 1 < s_; ++i) {
         potential_->hessian(stages.col(i), times(i), hessian_);
-        jacobian_.block(i * d_, (i - 1) * d_, d_, d_) += hessian_coeff_[i - 1] * hessian_;
+        jacobian_.block((i - first_equation_) * d_, (i - first_unknown_) * d_, d_, d_) +=
+            hessian_coeff_[i - 1] * hessian_;
       }
       lu_.compute(jacobian_);
       // PartialPivLU does not report singularity: a zero pivot shows as a non-finite solve.
@@ -305,6 +315,7 @@ class StageMatrix {
   Eigen::Index d_;
   const Potential* potential_;
   bool internal_hessians_;
+  int first_equation_, first_unknown_;
   bool sparse_ = false;
   std::vector<double> hessian_coeff_;  // −h b_i, internal stages
   // Dense.
@@ -321,6 +332,23 @@ class StageMatrix {
 
 // ---------------------------------------------------------------------------------------------
 // The stepper.
+
+// The d × s blocks of one interval (column a = stage a) and its stage times: increments
+// X_a − (the known node), stage values, X̃ = X − P, the known memory Σ_{j≥1} (W_j X̃_{n−j}), V,
+// M V B D, ∇U − f, R G̃ (h^{−β} scaled), the interval force F and P's loads L.
+struct Blocks {
+  Eigen::MatrixXd delta, stages, tilde, memory, velocities, kinetic, forces, damping_forces, force,
+      loads;
+  Eigen::VectorXd times, scratch;
+  void resize(Eigen::Index d, int s) {
+    for (Eigen::MatrixXd* m : {&delta, &stages, &tilde, &memory, &velocities, &kinetic, &forces,
+                               &damping_forces, &force, &loads}) {
+      m->setZero(d, s);
+    }
+    times.setZero(s);
+    scratch.setZero(d);
+  }
+};
 
 class LobattoStepper final : public Stepper {
  public:
@@ -357,12 +385,8 @@ class LobattoStepper final : public Stepper {
       position_load_ = std::make_unique<PowerMoments>(
           nodes_, -beta_, std::pow(h_, -beta_) / boost::math::tgamma(1.0 - beta_));
     }
-    for (Eigen::MatrixXd* m : {&delta_, &stages_, &tilde_, &memory_, &velocities_, &kinetic_,
-                               &forces_, &damping_forces_, &interval_force_, &loads_}) {
-      m->setZero(d_, s_);
-    }
-    for (Eigen::VectorXd* v : {&x_, &v_, &p_, &r_v0_, &r_x0_, &scratch_d_}) v->setZero(d_);
-    times_.setZero(s_);
+    cur_.resize(d_, s_);
+    for (Eigen::VectorXd* v : {&x_, &v_, &p_, &r_v0_, &r_x0_}) v->setZero(d_);
     for (Eigen::VectorXd* v : {&load_v_, &load_x_, &work_v_, &work_x_}) v->setZero(s_);
     residual_.setZero((s_ - 1) * d_);
     solve_scratch_.setZero((s_ - 1) * d_);
@@ -382,9 +406,9 @@ class LobattoStepper final : public Stepper {
     mass_.multiply(problem.v0, p_);
     work_ = diagnostics_ ? 0.0 : kNaN;
     if (linear_) {
-      stages_.colwise() = problem.x0;
-      for (int a = 0; a < s_; ++a) times_(a) = problem.t0 + nodes_.c(a) * h_;
-      if (!stage_matrix_.factor(stages_, times_)) {
+      cur_.stages.colwise() = problem.x0;
+      for (int a = 0; a < s_; ++a) cur_.times(a) = problem.t0 + nodes_.c(a) * h_;
+      if (!stage_matrix_.factor(cur_.stages, cur_.times)) {
         throw ValidationError("the stage system of " + std::string(name()) +
                               " is singular for this problem (h = " + format_number(h_) + ")");
       }
@@ -407,10 +431,16 @@ class LobattoStepper final : public Stepper {
     return s_ == 2 ? "fvi-lobatto2" : (s_ == 3 ? "fvi-lobatto3" : "fvi-lobatto4");
   }
   Status advance() override;
-  // Columns a ∈ [first, last) of forces_: ∇U(X_a, t_a) − f(t_a).
-  void stage_forces(int first, int last);
-  // F_n from delta_ (stages_ = x_n + delta_), columns [0, last): interval_force_.
-  void interval_force(int last);
+  // Columns a ∈ [first, last) of b.forces: ∇U(X_a, τ_a) − f(τ_a) at the stage times b.times.
+  void stage_forces(Blocks& b, int first, int last) const;
+  // b.tilde = b.stages − P(b.times) (b.stages when there is no split).
+  void subtract_polynomial(Blocks& b) const;
+  // Columns [0, last) of F (b.force) from b.delta, b.stages (= known node + b.delta), b.memory,
+  // b.loads and b.forces, with `current` the weight of the interval's own stages (W_0 for the
+  // x-equation, J W_0 J for the mirror y-equation).
+  void interval_force(Blocks& b, const Eigen::MatrixXd& current, int last) const;
+  [[nodiscard]] double mirror_error(const RowMatrixXd& x,
+                                    std::span<const std::size_t> steps) const override;
 
   const InitialValueProblem& problem_;
   IntegratorOptions options_;
@@ -432,58 +462,55 @@ class LobattoStepper final : public Stepper {
   std::unique_ptr<BlockHistory> history_;
 
   std::size_t n_ = 0;
-  Eigen::VectorXd x_, v_, p_, r_v0_, r_x0_, scratch_d_, times_, load_v_, load_x_, work_v_, work_x_,
-      residual_, solve_scratch_;
-  // d × s blocks, column a = stage a: increments X_a − x_n, stage values, X̃ = X − P, the known
-  // memory Σ_{j≥1} X̃_{n−j} W_jᵀ, V, M V B D, ∇U − f, R G̃, F_n, L_n.
-  Eigen::MatrixXd delta_, stages_, tilde_, memory_, velocities_, kinetic_, forces_, damping_forces_,
-      interval_force_, loads_;
+  Eigen::VectorXd x_, v_, p_, r_v0_, r_x0_, load_v_, load_x_, work_v_, work_x_, residual_,
+      solve_scratch_;
+  Blocks cur_;
   double work_ = 0.0;
 };
 
-void LobattoStepper::stage_forces(int first, int last) {
+void LobattoStepper::stage_forces(Blocks& b, int first, int last) const {
   for (int a = first; a < last; ++a) {
-    auto g = forces_.col(a);
+    auto g = b.forces.col(a);
     if (potential_ != nullptr) {
-      potential_->gradient(stages_.col(a), times_(a), g);
+      potential_->gradient(b.stages.col(a), b.times(a), g);
     } else {
       g.setZero();
     }
     if (has_forcing_) {
-      problem_.model.forcing(times_(a), scratch_d_);
-      g -= scratch_d_;
+      problem_.model.forcing(b.times(a), b.scratch);
+      g -= b.scratch;
     }
   }
 }
 
-void LobattoStepper::interval_force(int last) {
-  // V = Δ Dᵀ / h (Σ_k D_{ak} = 0, so increments suffice: no cancellation of x_n), then
-  // Σ_a b_a D_{ak} M V_a = (M V B D)_k.
-  velocities_.noalias() = delta_ * nodes_.D.transpose();
-  velocities_ /= h_;
-  for (int a = 0; a < s_; ++a) mass_.multiply(velocities_.col(a), kinetic_.col(a));
-  if (damped_) {
-    // G̃ = h^{−β}(X̃ W_0ᵀ + memory); only the columns [0, last) are needed.
-    tilde_ = delta_;
-    tilde_.colwise() += x_;
-    if (split_) {
-      for (int a = 0; a < s_; ++a) {
-        tilde_.col(a) -= problem_.x0;
-        tilde_.col(a) -= (times_(a) - problem_.t0) * problem_.v0;
-      }
-    }
+void LobattoStepper::subtract_polynomial(Blocks& b) const {
+  b.tilde = b.stages;
+  if (!split_) return;
+  for (int a = 0; a < s_; ++a) {
+    b.tilde.col(a) -= problem_.x0;
+    b.tilde.col(a) -= (b.times(a) - problem_.t0) * problem_.v0;
   }
+}
+
+void LobattoStepper::interval_force(Blocks& b, const Eigen::MatrixXd& current, int last) const {
+  // V = Δ Dᵀ / h (Σ_k D_{ak} = 0, so increments suffice: no cancellation of the node value),
+  // then Σ_a b_a D_{ak} M V_a = (M V B D)_k.
+  b.velocities.noalias() = b.delta * nodes_.D.transpose();
+  b.velocities /= h_;
+  for (int a = 0; a < s_; ++a) mass_.multiply(b.velocities.col(a), b.kinetic.col(a));
+  if (damped_) subtract_polynomial(b);
   for (int k = 0; k < last; ++k) {
-    auto f = interval_force_.col(k);
-    f.noalias() = kinetic_ * nodes_.BD.col(k);
-    f -= (h_ * nodes_.b(k)) * forces_.col(k);
+    auto f = b.force.col(k);
+    f.noalias() = b.kinetic * nodes_.BD.col(k);
+    f -= (h_ * nodes_.b(k)) * b.forces.col(k);
     if (damped_) {
-      scratch_d_.noalias() = tilde_ * w0_.row(k).transpose();
-      scratch_d_ += memory_.col(k);
-      damping_.multiply(scratch_d_, damping_forces_.col(k));
-      damping_forces_.col(k) *= h_power_;
-      f -= (h_ * nodes_.b(k)) * damping_forces_.col(k);
-      f -= loads_.col(k);
+      // R G̃_k = R h^{−β} (Σ_l current_{kl} X̃_l + memory_k).
+      b.scratch.noalias() = b.tilde * current.row(k).transpose();
+      b.scratch += b.memory.col(k);
+      damping_.multiply(b.scratch, b.damping_forces.col(k));
+      b.damping_forces.col(k) *= h_power_;
+      f -= (h_ * nodes_.b(k)) * b.damping_forces.col(k);
+      f -= b.loads.col(k);
     }
   }
 }
@@ -491,39 +518,39 @@ void LobattoStepper::interval_force(int last) {
 Status LobattoStepper::advance() {
   const std::size_t n = n_;
   const double tn = problem_.time(static_cast<double>(n));
-  for (int a = 0; a < s_; ++a) times_(a) = tn + nodes_.c(a) * h_;
+  for (int a = 0; a < s_; ++a) cur_.times(a) = tn + nodes_.c(a) * h_;
   // Known this step: the memory of the earlier intervals and the Taylor polynomial's loads.
   if (damped_) {
     if (history_ && history_->size() > 0) {
-      history_->sum(memory_);
+      history_->sum(cur_.memory);
     } else {
-      memory_.setZero();
+      cur_.memory.setZero();
     }
-    loads_.setZero();
+    cur_.loads.setZero();
     if (velocity_load_) {
       (*velocity_load_)(n, load_v_, work_v_);
-      for (int a = 0; a < s_; ++a) loads_.col(a) += (h_ * load_v_(a)) * r_v0_;
+      for (int a = 0; a < s_; ++a) cur_.loads.col(a) += (h_ * load_v_(a)) * r_v0_;
     }
     if (position_load_) {
       (*position_load_)(n, load_x_, work_x_);
-      for (int a = 0; a < s_; ++a) loads_.col(a) += (h_ * load_x_(a)) * r_x0_;
+      for (int a = 0; a < s_; ++a) cur_.loads.col(a) += (h_ * load_x_(a)) * r_x0_;
     }
   }
   // Guess: the stages on the line x_n + (t − t_n) v_n.
   mass_solver_.inverse(p_, v_);
-  for (int a = 0; a < s_; ++a) delta_.col(a) = (nodes_.c(a) * h_) * v_;
-  stages_ = delta_;
-  stages_.colwise() += x_;
-  stage_forces(0, s_ - 1);
+  for (int a = 0; a < s_; ++a) cur_.delta.col(a) = (nodes_.c(a) * h_) * v_;
+  cur_.stages = cur_.delta;
+  cur_.stages.colwise() += x_;
+  stage_forces(cur_, 0, s_ - 1);
   const NewtonOptions& newton = options_.newton;
   int iterations = 0;
   for (;;) {
-    interval_force(s_ - 1);
+    interval_force(cur_, w0_, s_ - 1);
     // Residual rows: p_n + F_{n,1}, F_{n,i} (i = 2 … s − 1); Newton: J δ = −r.
-    for (int i = 0; i + 1 < s_; ++i) residual_.segment(i * d_, d_) = -interval_force_.col(i);
+    for (int i = 0; i + 1 < s_; ++i) residual_.segment(i * d_, d_) = -cur_.force.col(i);
     residual_.head(d_) -= p_;
     if (!residual_.allFinite()) return fail(Status::kNonFinite, "non-finite stage residual");
-    if (!linear_ && !stage_matrix_.factor(stages_, times_)) {
+    if (!linear_ && !stage_matrix_.factor(cur_.stages, cur_.times)) {
       return fail(Status::kNewtonFailure,
                   "the stage system's Newton matrix could not be factored (singular)");
     }
@@ -531,20 +558,21 @@ Status LobattoStepper::advance() {
     ++iterations;
     double correction = 0.0;
     for (int m = 1; m < s_; ++m) {
-      delta_.col(m) += residual_.segment((m - 1) * d_, d_);
+      cur_.delta.col(m) += residual_.segment((m - 1) * d_, d_);
       correction = std::max(correction, residual_.segment((m - 1) * d_, d_).cwiseAbs().maxCoeff());
     }
-    stages_ = delta_;
-    stages_.colwise() += x_;
-    if (!stages_.allFinite()) return fail(Status::kNonFinite, "non-finite stage values");
+    cur_.stages = cur_.delta;
+    cur_.stages.colwise() += x_;
+    if (!cur_.stages.allFinite()) return fail(Status::kNonFinite, "non-finite stage values");
     if (linear_) break;  // the equations are linear in the stages: one correction is exact
-    stage_forces(1, s_ - 1);
+    stage_forces(cur_, 1, s_ - 1);
     // The stopping rule of NewtonOptions, floored at the round-off of the stage equations: the
     // memory acts on X̃ = X − P, and P(t) = x_0 + (t − t_0) v_0 grows with t, so the corrections
     // stall at a few ulps of max|X̃| (measured: 9e-17 against a requested 8.7e-17 with |X| =
     // 0.009, |X̃| = 24 at t = 125), which a tight relative tolerance could otherwise never meet.
-    const double scale = std::max(stages_.cwiseAbs().maxCoeff(), x_.cwiseAbs().maxCoeff());
-    const double roundoff_scale = damped_ ? std::max(scale, tilde_.cwiseAbs().maxCoeff()) : scale;
+    const double scale = std::max(cur_.stages.cwiseAbs().maxCoeff(), x_.cwiseAbs().maxCoeff());
+    const double roundoff_scale =
+        damped_ ? std::max(scale, cur_.tilde.cwiseAbs().maxCoeff()) : scale;
     const double tolerance =
         std::max(newton.absolute_tolerance + newton.relative_tolerance * scale,
                  4.0 * std::numeric_limits<double>::epsilon() * roundoff_scale);
@@ -559,49 +587,158 @@ Status LobattoStepper::advance() {
   }
   set_iterations(iterations);
   // p_{n+1} = F_{n,s}, the right discrete Legendre transform (with the damping).
-  stage_forces(s_ - 1, s_);
-  if (linear_) stage_forces(1, s_ - 1);  // (the Newton loop left them at the accepted stages)
-  interval_force(s_);
-  if (!interval_force_.allFinite()) return fail(Status::kNonFinite, "non-finite momentum");
+  stage_forces(cur_, s_ - 1, s_);
+  if (linear_) stage_forces(cur_, 1, s_ - 1);  // (the Newton loop left them at the accepted stages)
+  interval_force(cur_, w0_, s_);
+  if (!cur_.force.allFinite()) return fail(Status::kNonFinite, "non-finite momentum");
   if (diagnostics_) {
     // W += h Σ_a b_a (R G̃_a − f_a)·V_a + ∫ R D^βP · ẋ_h dt (exact moments) − ∫ ∂_t U dt.
     for (int a = 0; a < s_; ++a) {
       double power = 0.0;
-      if (damped_) power += damping_forces_.col(a).dot(velocities_.col(a));
+      if (damped_) power += cur_.damping_forces.col(a).dot(cur_.velocities.col(a));
       if (has_forcing_) {
-        problem_.model.forcing(times_(a), scratch_d_);
-        power -= scratch_d_.dot(velocities_.col(a));
+        problem_.model.forcing(cur_.times(a), cur_.scratch);
+        power -= cur_.scratch.dot(cur_.velocities.col(a));
       }
       work_ += h_ * nodes_.b(a) * power;
-      if (damped_ && velocity_load_) work_ += work_v_(a) * r_v0_.dot(delta_.col(a));
-      if (damped_ && position_load_) work_ += work_x_(a) * r_x0_.dot(delta_.col(a));
+      if (damped_ && velocity_load_) work_ += work_v_(a) * r_v0_.dot(cur_.delta.col(a));
+      if (damped_ && position_load_) work_ += work_x_(a) * r_x0_.dot(cur_.delta.col(a));
       if (u_time_dependent_) {
         // ∂_t U at the stage by a central difference (step ε^{1/3} scale: error ~ 1e-11 relative).
-        const double dt = 6e-6 * std::max(1.0, std::abs(times_(a)));
-        const double dudt = (potential_->value(stages_.col(a), times_(a) + dt) -
-                             potential_->value(stages_.col(a), times_(a) - dt)) /
+        const double dt = 6e-6 * std::max(1.0, std::abs(cur_.times(a)));
+        const double dudt = (potential_->value(cur_.stages.col(a), cur_.times(a) + dt) -
+                             potential_->value(cur_.stages.col(a), cur_.times(a) - dt)) /
                             (2.0 * dt);
         work_ -= h_ * nodes_.b(a) * dudt;
       }
     }
   }
   if (history_) {
-    tilde_ = delta_;
-    tilde_.colwise() += x_;
-    if (split_) {
-      for (int a = 0; a < s_; ++a) {
-        tilde_.col(a) -= problem_.x0;
-        tilde_.col(a) -= (times_(a) - problem_.t0) * problem_.v0;
-      }
-    }
-    history_->push(tilde_);
+    subtract_polynomial(cur_);
+    history_->push(cur_.tilde);
   }
-  x_ = stages_.col(s_ - 1);
-  p_ = interval_force_.col(s_ - 1);
+  x_ = cur_.stages.col(s_ - 1);
+  p_ = cur_.force.col(s_ - 1);
   mass_solver_.inverse(p_, v_);
   if (!x_.allFinite() || !v_.allFinite()) return fail(Status::kNonFinite, "non-finite state");
   ++n_;
   return Status::kSuccess;
+}
+
+// The mirror run (fvi_lobatto.md §5): the y-equation solved backwards, interval m = N − 1 … 0, in
+// its own orientation. Unknowns Y_{m,1 … s−1} (0-based stages 0 … s − 2; Y_{m,s} = y_{m+1} known),
+// equations F^y_{m,s} = q_{m+1} (node) and F^y_{m,i} = 0 (internal), then y_m = Y_{m,1} and
+// q_m = −F^y_{m,1}; start y_N = x_0, q_N = −M v_0. F^y is F with U_f at the mirrored times
+// a + b − t_{m,a}, P's loads of the mirrored interval, the forward-running memory
+// Σ_{j≥0} J W_j J Ỹ_{m+j} (a causal block history over Ỹ_{N−1}, Ỹ_{N−2}, … fed with the stages
+// reversed and read back reversed), and J W_0 J on the interval's own stages. Nothing is shared
+// with the x-run but the model: the reversed trajectory solves these equations exactly (the
+// symmetry W_jᵀB = J B W_j J of Lobatto IIIC), so the difference is round-off.
+double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
+                                    std::span<const std::size_t> steps) const {
+  const std::size_t n_steps = problem_.steps;
+  const Eigen::MatrixXd reversal = Eigen::MatrixXd::Identity(s_, s_).rowwise().reverse();
+  const Eigen::MatrixXd current = reversal * w0_ * reversal;
+  StageMatrix matrix(nodes_, current, h_, beta_, mass_, damping_, damped_, potential_,
+                     options_.linear_solver, /*first_equation=*/1, /*first_unknown=*/0);
+  std::unique_ptr<BlockHistory> history;
+  if (damped_ && beta_ > 0.0) {
+    history = make_block_history(options_.history, RungeKuttaCq{s_, beta_, 1}, d_, n_steps,
+                                 options_.history_tolerance);
+  }
+  std::unique_ptr<PowerMoments> velocity_load, position_load;
+  if (velocity_load_) velocity_load = std::make_unique<PowerMoments>(*velocity_load_);
+  if (position_load_) position_load = std::make_unique<PowerMoments>(*position_load_);
+  Blocks y;
+  y.resize(d_, s_);
+  Eigen::VectorXd node = problem_.x0, q(d_), yv(d_), value(s_), slope(s_);
+  mass_.multiply(problem_.v0, q);
+  q = -q;
+  Eigen::VectorXd residual((s_ - 1) * d_), scratch((s_ - 1) * d_);
+  Eigen::MatrixXd reversed(d_, s_);
+  const bool linear = linear_;
+  if (linear) {
+    y.stages.colwise() = node;
+    y.times.setConstant(problem_.t_end);
+    if (!matrix.factor(y.stages, y.times)) return kNaN;
+  }
+  // Stored rows: x at steps[i] mirrors y at N − steps[i]; walk them as y_m is produced.
+  const std::size_t rows =
+      std::min<std::size_t>(steps.size(), static_cast<std::size_t>(x_rows.rows()));
+  double error = 0.0;
+  std::size_t row = 0;
+  auto compare = [&](std::size_t m, const Eigen::VectorXd& ym) {
+    while (row < rows && steps[row] < n_steps - m) ++row;
+    if (row < rows && steps[row] == n_steps - m) {
+      error = std::max(
+          error,
+          (x_rows.row(static_cast<Eigen::Index>(row)).transpose() - ym).cwiseAbs().maxCoeff());
+    }
+  };
+  compare(n_steps, node);
+  for (std::size_t m = n_steps; m-- > 0;) {
+    const double tm = problem_.time(static_cast<double>(m));
+    for (int a = 0; a < s_; ++a)
+      y.times(a) = problem_.t0 + problem_.t_end - (tm + nodes_.c(a) * h_);
+    if (damped_) {
+      if (history && history->size() > 0) {
+        history->sum(reversed);
+        y.memory = reversed.rowwise().reverse();
+      } else {
+        y.memory.setZero();
+      }
+      y.loads.setZero();
+      const std::size_t mirrored = n_steps - 1 - m;  // the x-interval of the same times
+      if (velocity_load) {
+        (*velocity_load)(mirrored, value, slope);
+        for (int a = 0; a < s_; ++a) y.loads.col(a) += (h_ * value(s_ - 1 - a)) * r_v0_;
+      }
+      if (position_load) {
+        (*position_load)(mirrored, value, slope);
+        for (int a = 0; a < s_; ++a) y.loads.col(a) += (h_ * value(s_ - 1 - a)) * r_x0_;
+      }
+    }
+    // Guess: the line through y_{m+1} with the y-velocity M⁻¹q_{m+1}.
+    mass_solver_.inverse(q, yv);
+    for (int a = 0; a < s_; ++a) y.delta.col(a) = (-(1.0 - nodes_.c(a)) * h_) * yv;
+    y.stages = y.delta;
+    y.stages.colwise() += node;
+    stage_forces(y, 0, s_);
+    for (int iteration = 1;; ++iteration) {
+      interval_force(y, current, s_);
+      for (int r = 0; r + 1 < s_; ++r) residual.segment(r * d_, d_) = -y.force.col(r + 1);
+      residual.tail(d_) += q;
+      if (!residual.allFinite()) return kNaN;
+      if (!linear && !matrix.factor(y.stages, y.times)) return kNaN;
+      matrix.solve_in_place(residual, scratch);
+      double correction = 0.0;
+      for (int c = 0; c + 1 < s_; ++c) {
+        y.delta.col(c) += residual.segment(c * d_, d_);
+        correction = std::max(correction, residual.segment(c * d_, d_).cwiseAbs().maxCoeff());
+      }
+      y.stages = y.delta;
+      y.stages.colwise() += node;
+      stage_forces(y, 0, s_);
+      if (linear) break;
+      const double scale = std::max(y.stages.cwiseAbs().maxCoeff(), y.tilde.cwiseAbs().maxCoeff());
+      const double tolerance =
+          std::max(options_.newton.absolute_tolerance + options_.newton.relative_tolerance * scale,
+                   4.0 * std::numeric_limits<double>::epsilon() * scale);
+      if (correction <= tolerance) break;
+      if (iteration >= options_.newton.max_iterations) return kNaN;
+    }
+    interval_force(y, current, s_);
+    if (history) {
+      subtract_polynomial(y);
+      reversed = y.tilde.rowwise().reverse();
+      history->push(reversed);
+    }
+    node = y.stages.col(0);
+    q = -y.force.col(0);
+    if (!node.allFinite() || !q.allFinite()) return kNaN;
+    compare(m, node);
+  }
+  return error;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -772,7 +909,7 @@ const SchemeInfo kFviLobatto2{
     .stages = 2,
     .variational = true,
     .variational_quadrature = std::nullopt,
-    .has_mirror = false,
+    .has_mirror = true,
     .exact_balance = false,
     .fast_history = true,
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
@@ -794,7 +931,7 @@ const SchemeInfo kFviLobatto3{
     .stages = 3,
     .variational = true,
     .variational_quadrature = std::nullopt,
-    .has_mirror = false,
+    .has_mirror = true,
     .exact_balance = false,
     .fast_history = true,
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
@@ -816,7 +953,7 @@ const SchemeInfo kFviLobatto4{
     .stages = 4,
     .variational = true,
     .variational_quadrature = std::nullopt,
-    .has_mirror = false,
+    .has_mirror = true,
     .exact_balance = false,
     .fast_history = true,
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
