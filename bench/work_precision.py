@@ -55,7 +55,7 @@ def main():
     print("|---|---|---|---|")
     reached = {}
     for scheme in schemes:
-        steps = 1000
+        steps = 25
         while steps <= args.max_steps:
             error, wall = run(scheme, steps, args.repeat)
             print(f"| {scheme} | {steps} | {error:.3e} | {wall:.4f} |", flush=True)
