@@ -425,6 +425,9 @@ class LobattoStepper final : public Stepper {
   [[nodiscard]] std::size_t history_bytes() const override {
     return history_ ? history_->memory_bytes() : 0;
   }
+  [[nodiscard]] const Eigen::MatrixXd* stage_values() const override {
+    return n_ > 0 ? &cur_.stages : nullptr;
+  }
 
  private:
   [[nodiscard]] std::string_view name() const {

@@ -54,6 +54,11 @@ class Stepper {
   [[nodiscard]] virtual double mirror_error(const RowMatrixXd& x,
                                             std::span<const std::size_t> steps) const;
 
+  /// The stage values of the last step's interval, a d × s block (column a: the state at
+  /// t_{k−1} + c_a h), for schemes whose step has internal stages (the Lobatto FVIs); null for
+  /// the one-stage schemes and before the first step.
+  [[nodiscard]] virtual const Eigen::MatrixXd* stage_values() const { return nullptr; }
+
   /// The factorisation of the implicit step: kDense, kBanded or kSparse.
   [[nodiscard]] virtual LinearSolver linear_solver() const = 0;
   /// Bytes kept by the memory of the damping term (0 without one).
