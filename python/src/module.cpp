@@ -472,6 +472,7 @@ void bind(py::module_& m) {
       .def_readonly("history", &ProblemSpec::history)
       .def_readonly("history_tolerance", &ProblemSpec::history_tolerance)
       .def_readonly("linear_solver", &ProblemSpec::linear_solver)
+      .def_readonly("load", &ProblemSpec::load)
       .def_readonly("threads", &ProblemSpec::threads)
       .def_readonly("every", &ProblemSpec::every)
       .def("to_dict", [](const ProblemSpec& s) { return to_python(to_json(s)); })

@@ -46,6 +46,7 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   o.history = *parse_history_kind(spec.history);
   o.history_tolerance = spec.history_tolerance;
   o.linear_solver = *parse_linear_solver(spec.linear_solver);
+  o.load = *parse_forcing_load(spec.load);
   o.threads = spec.threads;
   o.save_every = static_cast<std::size_t>(spec.every);
   return o;

@@ -572,6 +572,14 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
                                          joined(solvers) + did_you_mean(p.linear_solver, solvers));
     }
   }
+  if (const auto* n = r.find("method", "load")) {
+    p.load = r.string(*n, "method.load");
+    if (!parse_forcing_load(p.load)) {
+      const std::vector<std::string> loads{"pointwise", "moments"};
+      r.fail("method.load",
+             "= \"" + p.load + "\" is not one of " + joined(loads) + did_you_mean(p.load, loads));
+    }
+  }
   if (const auto* n = r.find("method", "threads")) {
     const long long threads = r.integer(*n, "method.threads");
     if (threads < 0 || threads > 4096) {

@@ -19,6 +19,16 @@ constexpr std::array<const SchemeInfo*, 6> kSchemes{
 
 }  // namespace
 
+std::optional<ForcingLoad> parse_forcing_load(std::string_view name) {
+  if (name == "pointwise") return ForcingLoad::kPointwise;
+  if (name == "moments") return ForcingLoad::kMoments;
+  return std::nullopt;
+}
+
+std::string_view to_string(ForcingLoad load) {
+  return load == ForcingLoad::kMoments ? "moments" : "pointwise";
+}
+
 std::span<const SchemeInfo* const> registered_schemes() {
   return kSchemes;
 }
@@ -92,6 +102,17 @@ void check_applicable(const InitialValueProblem& problem, const Method& method,
                           std::string(info.name) +
                           "\" (no sum-of-exponentials fit of its memory weights yet): use \"auto\" "
                           "(the direct sum for this scheme) or \"direct\"");
+  }
+  if (options.load == ForcingLoad::kMoments && !info.forcing_moments) {
+    std::string with;
+    for (const SchemeInfo* other : kSchemes) {
+      if (!other->forcing_moments) continue;
+      if (!with.empty()) with += ", ";
+      with += other->name;
+    }
+    throw ValidationError("method.load = \"moments\" is not available for method.scheme = \"" +
+                          std::string(info.name) + "\" (schemes with it: " + with +
+                          "); use \"pointwise\"");
   }
   const StabilityBound bound = info.stability(problem);
   if (bound.stable) return;

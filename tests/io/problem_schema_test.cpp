@@ -182,6 +182,7 @@ std::vector<std::string> differences(const fracvi::ProblemSpec& a, const fracvi:
   check(a.history == b.history, "history");
   check(a.history_tolerance == b.history_tolerance, "history_tolerance");
   check(a.linear_solver == b.linear_solver, "linear_solver");
+  check(a.load == b.load, "load");
   check(a.threads == b.threads, "threads");
   check(a.every == b.every, "every");
   check(a.reference == b.reference, "reference");
@@ -325,6 +326,7 @@ const std::vector<Case>& cases() {
       {"method.history", "", [](Json& j) { j["method"]["history"] = "fast"; }},
       {"method.history_tolerance", "", [](Json& j) { j["method"]["history_tolerance"] = 3e-9; }},
       {"method.linear_solver", "", [](Json& j) { j["method"]["linear_solver"] = "dense"; }},
+      {"method.load", "", [](Json& j) { j["method"]["load"] = "moments"; }},
       {"method.threads", "", [](Json& j) { j["method"]["threads"] = 3; }},
       {"output.every", "", [](Json& j) { j["output"]["every"] = 5; }},
       {"reference.position", "",
@@ -416,7 +418,7 @@ TEST(ProblemWriters, SetOverridesAreCheckedAgainstTheSchema) {
       message("method.newton_tolerence=1e-9"),
       "<built-in>: --set method.newton_tolerence: unknown key (did you mean 'newton_tolerance'?); "
       "valid in [method]: scheme, newton_tolerance, newton_max_iterations, history, "
-      "history_tolerance, linear_solver, threads");
+      "history_tolerance, linear_solver, load, threads");
   EXPECT_EQ(message("output.every.n=1"),
             "<built-in>: --set output.every.n: unknown section [output.every]; valid sections: "
             "[model], [model.chain], [initial], [boundary], [time], [method], [output], "

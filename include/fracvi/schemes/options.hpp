@@ -4,6 +4,8 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
+#include <string_view>
 
 #include "fracvi/core/newton_options.hpp"
 #include "fracvi/memory/history.hpp"
@@ -19,6 +21,19 @@ enum class StartValue {
   /// x_1 = x_0 + h v_0. First order; only for comparisons (it costs an order when R = 0).
   kExplicitEuler,
 };
+
+/// How the forcing f enters a step (IntegratorOptions::load).
+enum class ForcingLoad {
+  /// f at the scheme's quadrature points (the midpoint, the Lobatto stages): the published
+  /// setting. A forcing that is not smooth at t_0 (e.g. √t) costs order there.
+  kPointwise,
+  /// The exact Galerkin moments h∫ ℓ_k(σ) f(t_n + σh) dσ against the scheme's interpolant (the
+  /// variational form of −∫ f·x dt), by tanh–sinh quadrature on the first interval (integrable
+  /// singularities at t_0) and 20-point Gauss–Legendre beyond. Lobatto schemes only.
+  kMoments,
+};
+std::optional<ForcingLoad> parse_forcing_load(std::string_view name);
+std::string_view to_string(ForcingLoad load);
 
 /// Bounds of IntegratorOptions::history_tolerance (the per-weight relative accuracy ε of the
 /// sum-of-exponentials fit: below 1e-13 the fit is limited by round-off, above 1e-3 it is useless).
@@ -37,6 +52,9 @@ struct IntegratorOptions {
   /// Solution::max_balance_error is NaN.
   bool diagnostics = true;
   StartValue start = StartValue::kDiscreteLegendre;
+  /// How the forcing enters (ForcingLoad); kMoments is refused for schemes without it
+  /// (SchemeInfo::forcing_moments).
+  ForcingLoad load = ForcingLoad::kPointwise;
   /// Factorisation of the Newton matrix M + (h²/4)∇²U (and of M for v = M⁻¹p): kAuto uses a band
   /// or sparse factorisation when M is stored sparse and the potential declares a sparse Hessian
   /// (O(d) per step for chains), dense otherwise (symmetric_factor.hpp).

@@ -61,6 +61,8 @@ struct SchemeInfo {
   /// ‖δp_k‖ ≤ (h/2) ‖R‖ h^{−2α} Σ_{m≤k} |ω_m| max_j ‖δx_j‖ (the method-parameterised tests use this
   /// bound; Σ|ω| ≤ 2^{2α} for Grünwald–Letnikov, but grows like k^{2α} for the trapezoidal rule).
   CqScheme momentum_quadrature = CqScheme::kGrunwaldLetnikov;
+  /// method.load = "moments" (ForcingLoad::kMoments) is available.
+  bool forcing_moments = false;
   std::string_view applies_to;      ///< where it applies, in words ("every model", "2α = 1")
   std::string_view stability_rule;  ///< the stability bound in words
   /// The order the scheme reaches on smooth solutions of this model.
