@@ -415,6 +415,86 @@ TEST(LobattoStability, FractionalDampingThresholdAtTablePoints) {
   }
 }
 
+// (b') Between the table points the registry uses the smaller neighbouring ρ* (and the β = 0.9
+// value above 0.9): that must still be a sufficient bound. For 2α = β between and beyond the table
+// points, κ = 1e-4 (h = 0.01, M = K = 1), R at 0.97 of the largest R the registry admits (found by
+// bisection on stability(problem).stable) is hand-stepped for 3000 steps and must stay bounded.
+// Printed for information: the growth at 1.1 and 2 times that R (the bound is not sharp there, so
+// nothing is required of them). 3000 steps see only modes growing by ≥ 1.0023 per step (1e3 in
+// 3000 steps): a coarse check, 3 % below the bound; the test below (disabled: it fails) looks
+// 0.1 % below it with 40000 steps.
+TEST(LobattoStability, RegistryDampingBoundHoldsBetweenTablePoints) {
+  constexpr std::size_t kSteps = 3000;
+  constexpr double kH = 0.01;
+  for (const int s : {2, 3, 4}) {
+    for (const double beta : {0.05, 0.15, 0.2, 0.3, 0.4, 0.6, 0.7, 0.8, 0.85, 0.95, 0.99}) {
+      // Largest admitted R at this h: bisection in log R.
+      double lo = 1e-3, hi = 1e9;
+      for (int it = 0; it < 100; ++it) {
+        const double mid = std::sqrt(lo * hi);
+        (lobatto(s).stability(test_problem(beta, mid, 1.0, kH, kSteps)).stable ? lo : hi) = mid;
+      }
+      const double r_star = lo;
+      const double rho_star = r_star * std::pow(kH, 2.0 - beta);
+      const double below =
+          stepper_growth(lobatto(s), test_problem(beta, 0.97 * r_star, 1.0, kH, kSteps));
+      const double above =
+          stepper_growth(lobatto(s), test_problem(beta, 1.1 * r_star, 1.0, kH, kSteps));
+      const double far =
+          stepper_growth(lobatto(s), test_problem(beta, 2.0 * r_star, 1.0, kH, kSteps));
+      std::printf(
+          "  %s, 2a = %.2f: registry rho* = %.4g (R/M = %.4g); max|x_k|/|x_0| = %.4e at 0.97, "
+          "%.4e at 1.1, %.4e at 2 times the bound\n",
+          scheme_name(s).c_str(), beta, rho_star, r_star, below, above, far);
+      EXPECT_LE(below, kBoundedFactor) << scheme_name(s) << ", 2a = " << beta;
+    }
+  }
+}
+
+// (b'') KNOWN BUG, disabled (reported, not fixed here): the registry's damping bound is not
+// sufficient just below it. damping_bound() in src/schemes/fvi_lobatto.cpp holds the prototype's ρ*
+// (fvi_lobatto.md §8.2), found by counting the zeros of the characteristic function in
+// |ζ| < 0.995, i.e. only modes growing by ≥ 1/0.995 per step; the weakly growing modes just past
+// the true threshold are missed, and the table (and its use, ρ*_0 (1 − κ/κ*)) carries no safety
+// margin although StabilityBound::sharp = false promises a sufficient condition. Measured by
+// bisection with hand-stepped runs (growth ≥ 1e3 within N steps; the estimate decreases with N and
+// converges): M = K = 1, κ = 1e-4, s = 2, 2α = 0.9: threshold 0.9920, 0.9840, 0.9819, 0.9814 ×
+// 18.1 for N = 1e4, 4e4, 1.6e5, 6.4e5 (true ρ* ≈ 17.76); s = 2, 2α = 0.5: 0.9957 × 4.92 (ρ* ≈
+// 4.899). With N = 40000, as fractions of the registry's bound (κ = 1e-4 / 0.1 / 1): s = 2,
+// 2α = 0.5: 0.9961 / 0.9960 / 0.9960; s = 3, 2α = 0.5: 0.9989 / ok / ok; s = 4, 2α = 0.5:
+// 0.9975 / 0.9994 / ok; s = 2, 2α = 0.9: 0.9840 / 0.9833 / 0.9831; s = 4, 2α = 0.25: 0.9994 / ok /
+// ok; s = 2, 2α = 0.25: 0.9976; s = 2, 2α = 0.75: 0.9934; s = 3, 2α = 0.9: 0.9880; s = 4,
+// 2α = 0.9: 0.9861 ("ok": the bound lies below the threshold, by 0.1–9 %). E.g. s = 2, 2α = 0.5,
+// κ = 0.1 (h = 0.3162, R = 0.999 × 4.797/h^1.5): admitted, max|x_k| = 7.5e80 after 40000 steps.
+// Enable once the table is lowered (or given a margin of ≥ 2 %).
+TEST(LobattoStability, DISABLED_RegistryDampingBoundIsSufficientJustBelowIt) {
+  constexpr std::size_t kSteps = 40000;
+  struct Point {
+    int s;
+    double beta;
+  };
+  for (const Point pt :
+       {Point{2, 0.5}, Point{3, 0.5}, Point{4, 0.5}, Point{2, 0.9}, Point{4, 0.25}}) {
+    for (const double kappa : {1e-4, 0.1, 1.0}) {
+      const double h = std::sqrt(kappa);
+      double lo = 1e-3, hi = 1e12;
+      for (int it = 0; it < 100; ++it) {
+        const double mid = std::sqrt(lo * hi);
+        (lobatto(pt.s).stability(test_problem(pt.beta, mid, 1.0, h, kSteps)).stable ? lo : hi) =
+            mid;
+      }
+      const InitialValueProblem p = test_problem(pt.beta, 0.999 * lo, 1.0, h, kSteps);
+      ASSERT_TRUE(lobatto(pt.s).stability(p).stable);
+      const double growth = stepper_growth(lobatto(pt.s), p);
+      std::printf("  %s, 2a = %.2f, kappa = %g: rho = 0.999 x registry bound = %.5g: growth %.3e\n",
+                  scheme_name(pt.s).c_str(), pt.beta, kappa,
+                  0.999 * lo * std::pow(h, 2.0 - pt.beta), growth);
+      EXPECT_LE(growth, kBoundedFactor)
+          << scheme_name(pt.s) << ", 2a = " << pt.beta << ", kappa = " << kappa;
+    }
+  }
+}
+
 // (c) The grid: M = K = 1, x0 = 1, v0 = 0, R/M ∈ {1, 10², 10⁴}, h ∈ {10⁻², 10⁻¹, 1},
 // 2000 steps. K = 1 is admissible everywhere (κ = h² ≤ 1 < 0.9 κ* for every s). 2α ∈ {1, 1.5}:
 // the registry admits every case and every case stays bounded (fvi_lobatto.md §8.2: no damping
