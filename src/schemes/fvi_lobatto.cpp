@@ -910,7 +910,13 @@ StabilityBound lobatto_bound(int s, const InitialValueProblem& problem) {
   const bool damping_limited = lambda_r > 0.0 && beta > 0.0 && beta < 1.0;
   // β = 0: R is a second spring (D^0 x = x): κ + ρ < κ*.
   const bool spring = lambda_r > 0.0 && beta == 0.0;
-  const double rho_star = damping_limited ? damping_bound(s, beta) : kappa_star;
+  // The measured ρ* come from counting the roots in |ζ| < 0.995, which misses the slowly growing
+  // modes just past the threshold: hand-stepped bisection (tests/schemes/fvi_lobatto_test.cpp)
+  // puts the true threshold 0.1–1.9 % below the table (s = 2, 2α = 0.9: 0.9814 × 18.1). The
+  // registry keeps a 3 % margin so that the bound is sufficient.
+  constexpr double kDampingBoundMargin = 0.97;
+  const double rho_star =
+      damping_limited ? kDampingBoundMargin * damping_bound(s, beta) : kappa_star;
   // Admissible iff κ < κ* and (damping-limited) ρ < ρ*_0 (1 − κ/κ*): both sides monotone in h.
   auto margin = [&](double h) {
     const double kappa = lambda_k * h * h;
