@@ -540,6 +540,8 @@ class LobattoStepper final : public Stepper {
   MassSolver mass_solver_;
   StageMatrix stage_matrix_;
   bool linear_;
+  bool factored_ =
+      false;        // nonlinear U: the stage matrix holds a factorisation (simplified Newton)
   double h_power_;  // h^{−β}
   bool split_ = false;
   std::unique_ptr<PowerMoments> velocity_load_, position_load_;
@@ -635,15 +637,27 @@ Status LobattoStepper::advance() {
   stage_forces(cur_, 0, s_ - 1);
   const NewtonOptions& newton = options_.newton;
   int iterations = 0;
+  // Simplified Newton for nonlinear U: the stage matrix of an earlier iterate (or step) is kept
+  // while the corrections contract fast (θ = |δ_k|/|δ_{k−1}| ≤ kRefactorContraction) and formed
+  // again at the current iterate when they do not; the limit is the same (the residual is exact),
+  // only the factorisations are fewer (one every few steps for smooth motion instead of one per
+  // iteration: the sparse LU dominated the cost of the chains, bench/RESULTS.md).
+  constexpr double kRefactorContraction = 0.25;
+  bool refactor = !factored_;
+  double previous_correction = std::numeric_limits<double>::infinity();
   for (;;) {
     interval_force(cur_, w0_, s_ - 1);
     // Residual rows: p_n + F_{n,1}, F_{n,i} (i = 2 … s − 1); Newton: J δ = −r.
     for (int i = 0; i + 1 < s_; ++i) residual_.segment(i * d_, d_) = -cur_.force.col(i);
     residual_.head(d_) -= p_;
     if (!residual_.allFinite()) return fail(Status::kNonFinite, "non-finite stage residual");
-    if (!linear_ && !stage_matrix_.factor(cur_.stages, cur_.times)) {
-      return fail(Status::kNewtonFailure,
-                  "the stage system's Newton matrix could not be factored (singular)");
+    if (!linear_ && refactor) {
+      factored_ = stage_matrix_.factor(cur_.stages, cur_.times);
+      if (!factored_) {
+        return fail(Status::kNewtonFailure,
+                    "the stage system's Newton matrix could not be factored (singular)");
+      }
+      refactor = false;
     }
     stage_matrix_.solve_in_place(residual_, solve_scratch_);
     ++iterations;
@@ -668,6 +682,8 @@ Status LobattoStepper::advance() {
         std::max(newton.absolute_tolerance + newton.relative_tolerance * scale,
                  4.0 * std::numeric_limits<double>::epsilon() * roundoff_scale);
     if (correction <= tolerance) break;
+    if (correction > kRefactorContraction * previous_correction) refactor = true;
+    previous_correction = correction;
     if (iterations >= newton.max_iterations) {
       set_iterations(iterations);
       return fail(Status::kNewtonFailure,
