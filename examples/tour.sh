@@ -34,6 +34,11 @@ fracvi convergence examples/bagley_torvik_power_bdf2.toml --steps 100,200,400,80
 # [/snippet]
 test -f fracvi-out/bagley-torvik-power-bdf2-convergence/convergence.csv
 
+# [snippet: higher-order]
+fracvi convergence examples/bagley_torvik_root_lobatto.toml --steps 16,32,64,128
+# [/snippet]
+test -f fracvi-out/bagley-torvik-root-lobatto-convergence/convergence.csv
+
 # [snippet: convergence-fine]
 fracvi convergence examples/damped_pendulum.toml --steps 500,1000,2000,4000 --reference-steps 64000
 # [/snippet]
