@@ -1011,85 +1011,56 @@ std::unique_ptr<Stepper> make_lobatto(const InitialValueProblem& problem,
 constexpr std::string_view kLobattoReference =
     "Hariz, Ober-Bloebaum & Jimenez, arXiv 2510.11082 (github.com/khaledharizb/RKCQ); "
     "docs/theory/fvi_lobatto.md";
-constexpr std::string_view kLobattoStability2 =
-    "lambda_max(M^-1 Hess U) h^2 < 4; 0 < 2alpha < 1: also a measured bound on "
-    "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)";
-constexpr std::string_view kLobattoStability3 =
-    "lambda_max(M^-1 Hess U) h^2 < 8; 0 < 2alpha < 1: also a measured bound on "
-    "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)";
-constexpr std::string_view kLobattoStability4 =
-    "lambda_max(M^-1 Hess U) h^2 < 30; 0 < 2alpha < 1: also a measured bound on "
-    "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)";
+// One registry row per s; only the name, the summary, the order rule and κ* differ.
+template <int S>
+SchemeInfo lobatto_row(std::string_view name, std::string_view summary, std::string_view order_rule,
+                       std::string_view stability_rule) {
+  return SchemeInfo{
+      .name = name,
+      .summary = summary,
+      .reference = kLobattoReference,
+      .order_rule = order_rule,
+      .stages = S,
+      .variational = true,
+      .variational_quadrature = std::nullopt,  // its Δ^α_± act on stage values: no BVP form yet
+      .has_mirror = true,
+      .exact_balance = false,  // O(h^{2s−2}) (fvi_lobatto.md §6)
+      .fast_history = true,
+      .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
+      .forcing_moments = true,
+      .applies_to = "0 <= 2alpha < 2",
+      .stability_rule = stability_rule,
+      .declared_order = [](const MechanicalModel& model) { return lobatto_order(S, model); },
+      .applicability = lobatto_applicability,
+      .stability = [](const InitialValueProblem& problem) { return lobatto_bound(S, problem); },
+      .make_stepper = make_lobatto<S>,
+  };
+}
 
 }  // namespace
 
-const SchemeInfo kFviLobatto2{
-    .name = "fvi-lobatto2",
-    .summary =
-        "FVI with the Lobatto-Galerkin discrete Lagrangian on 2 nodes (Stoermer-Verlet) and "
-        "Lobatto IIIC (s = 2) Runge-Kutta CQ memory on the stage values; implicit damping",
-    .reference = kLobattoReference,
-    .order_rule = "2 (velocities 3 - 2alpha for 1 < 2alpha < 2)",
-    .stages = 2,
-    .variational = true,
-    .variational_quadrature = std::nullopt,
-    .has_mirror = true,
-    .exact_balance = false,
-    .fast_history = true,
-    .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
-    .forcing_moments = true,
-    .applies_to = "0 <= 2alpha < 2",
-    .stability_rule = kLobattoStability2,
-    .declared_order = [](const MechanicalModel& model) { return lobatto_order(2, model); },
-    .applicability = lobatto_applicability,
-    .stability = [](const InitialValueProblem& problem) { return lobatto_bound(2, problem); },
-    .make_stepper = make_lobatto<2>,
-};
+const SchemeInfo kFviLobatto2 = lobatto_row<2>(
+    "fvi-lobatto2",
+    "FVI with the Lobatto-Galerkin discrete Lagrangian on 2 nodes (Stoermer-Verlet) and Lobatto "
+    "IIIC (s = 2) Runge-Kutta CQ memory on the stage values; implicit damping",
+    "2 (velocities 3 - 2alpha for 1 < 2alpha < 2)",
+    "lambda_max(M^-1 Hess U) h^2 < 4; 0 < 2alpha < 1: also a measured bound on "
+    "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)");
 
-const SchemeInfo kFviLobatto3{
-    .name = "fvi-lobatto3",
-    .summary =
-        "FVI with the Lobatto-Galerkin discrete Lagrangian on 3 nodes and Lobatto IIIC (s = 3) "
-        "Runge-Kutta CQ memory on the stage values; implicit damping",
-    .reference = kLobattoReference,
-    .order_rule = "4 (2 for fractional 2alpha: regularity at t0)",
-    .stages = 3,
-    .variational = true,
-    .variational_quadrature = std::nullopt,
-    .has_mirror = true,
-    .exact_balance = false,
-    .fast_history = true,
-    .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
-    .forcing_moments = true,
-    .applies_to = "0 <= 2alpha < 2",
-    .stability_rule = kLobattoStability3,
-    .declared_order = [](const MechanicalModel& model) { return lobatto_order(3, model); },
-    .applicability = lobatto_applicability,
-    .stability = [](const InitialValueProblem& problem) { return lobatto_bound(3, problem); },
-    .make_stepper = make_lobatto<3>,
-};
+const SchemeInfo kFviLobatto3 = lobatto_row<3>(
+    "fvi-lobatto3",
+    "FVI with the Lobatto-Galerkin discrete Lagrangian on 3 nodes and Lobatto IIIC (s = 3) "
+    "Runge-Kutta CQ memory on the stage values; implicit damping",
+    "4 (2 for fractional 2alpha: regularity at t0)",
+    "lambda_max(M^-1 Hess U) h^2 < 8; 0 < 2alpha < 1: also a measured bound on "
+    "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)");
 
-const SchemeInfo kFviLobatto4{
-    .name = "fvi-lobatto4",
-    .summary =
-        "FVI with the Lobatto-Galerkin discrete Lagrangian on 4 nodes and Lobatto IIIC (s = 4) "
-        "Runge-Kutta CQ memory on the stage values; implicit damping",
-    .reference = kLobattoReference,
-    .order_rule = "6 (2 for fractional 2alpha: regularity at t0)",
-    .stages = 4,
-    .variational = true,
-    .variational_quadrature = std::nullopt,
-    .has_mirror = true,
-    .exact_balance = false,
-    .fast_history = true,
-    .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
-    .forcing_moments = true,
-    .applies_to = "0 <= 2alpha < 2",
-    .stability_rule = kLobattoStability4,
-    .declared_order = [](const MechanicalModel& model) { return lobatto_order(4, model); },
-    .applicability = lobatto_applicability,
-    .stability = [](const InitialValueProblem& problem) { return lobatto_bound(4, problem); },
-    .make_stepper = make_lobatto<4>,
-};
+const SchemeInfo kFviLobatto4 = lobatto_row<4>(
+    "fvi-lobatto4",
+    "FVI with the Lobatto-Galerkin discrete Lagrangian on 4 nodes and Lobatto IIIC (s = 4) "
+    "Runge-Kutta CQ memory on the stage values; implicit damping",
+    "6 (2 for fractional 2alpha: regularity at t0)",
+    "lambda_max(M^-1 Hess U) h^2 < 30; 0 < 2alpha < 1: also a measured bound on "
+    "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)");
 
 }  // namespace fracvi::internal

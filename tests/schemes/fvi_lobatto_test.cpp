@@ -35,6 +35,7 @@
 #include "../integrate/integrate_test_support.hpp"
 #include "../support/linear_oscillator_reference.hpp"
 #include "../support/order_fit.hpp"
+#include "../support/stepper_growth.hpp"
 #include "../support/test_problems.hpp"
 #include "fracvi/core/error.hpp"
 #include "fracvi/integrate/integrator.hpp"
@@ -320,23 +321,7 @@ TEST(LobattoEnergyAccount, ForcingAndTimeDependentPotentialEnterTheWork) {
 constexpr double kBoundedFactor = 10.0;
 constexpr double kBlowUpFactor = 1e3;
 
-/// max_k |x_k| / |x_0| over a hand-stepped run (Stepper, no stability check); +∞ when the state
-/// became non-finite or a step failed.
-double stepper_growth(const SchemeInfo& info, const InitialValueProblem& problem) {
-  IntegratorOptions options;
-  options.mirror = false;
-  options.diagnostics = false;
-  const std::unique_ptr<Stepper> stepper = info.make_stepper(problem, options);
-  const double x0 = problem.x0.lpNorm<Eigen::Infinity>();
-  double growth = 1.0;
-  for (std::size_t k = 0; k < problem.steps; ++k) {
-    if (stepper->step() != Status::kSuccess) return std::numeric_limits<double>::infinity();
-    const double amplitude = stepper->position().lpNorm<Eigen::Infinity>();
-    if (!std::isfinite(amplitude)) return std::numeric_limits<double>::infinity();
-    growth = std::max(growth, amplitude / x0);
-  }
-  return growth;
-}
+using test::stepper_growth;
 
 /// m x'' + r D^β x + k x = 0 with m = 1, x0 = 1, v0 = 0 (Caputo), step h, `steps` steps.
 InitialValueProblem test_problem(double beta, double r, double k, double h, std::size_t steps) {

@@ -40,6 +40,7 @@
 #include "../support/linear_oscillator_reference.hpp"
 #include "../support/order_fit.hpp"
 #include "../support/power_law_solution.hpp"
+#include "../support/stepper_growth.hpp"
 #include "../support/test_names.hpp"
 #include "../support/test_problems.hpp"
 #include "fracvi/core/error.hpp"
@@ -636,23 +637,7 @@ constexpr double kBoundedFactor = 10.0;
 // Unstable: growth of at least three orders of magnitude (or a non-finite state).
 constexpr double kBlowUpFactor = 1e3;
 
-/// max_k ‖x_k‖_∞ / ‖x_0‖_∞ over a hand-stepped run (Stepper, no stability check); +∞ when the
-/// state became non-finite or a step failed.
-double stepper_growth(const SchemeInfo& info, const InitialValueProblem& problem) {
-  IntegratorOptions options;
-  options.mirror = false;
-  options.diagnostics = false;
-  const std::unique_ptr<Stepper> stepper = info.make_stepper(problem, options);
-  const double x0 = problem.x0.lpNorm<Eigen::Infinity>();
-  double growth = 1.0;
-  for (std::size_t k = 0; k < problem.steps; ++k) {
-    if (stepper->step() != Status::kSuccess) return std::numeric_limits<double>::infinity();
-    const double amplitude = stepper->position().lpNorm<Eigen::Infinity>();
-    if (!std::isfinite(amplitude)) return std::numeric_limits<double>::infinity();
-    growth = std::max(growth, amplitude / x0);
-  }
-  return growth;
-}
+using test::stepper_growth;
 
 TEST_P(SchemeSuite, StabilityBoundIsSharpAndEnforced) {
   int checked = 0;
