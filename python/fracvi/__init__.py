@@ -341,8 +341,8 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostic
 
     Every key of the problem's [method] and [output] sections (problem_schema(): scheme,
     newton_tolerance (relative), newton_max_iterations, history_tolerance, linear_solver ("auto",
-    "dense", "banded", "sparse"), load ("pointwise" or "moments": how the forcing enters; moments
-    for the Lobatto schemes), threads (0: all cores), every (store every n-th state)) may be
+    "dense", "banded", "sparse"), load ("pointwise" or "moments": the forcing at the
+    quadrature points or its exact moments), threads (0: all cores), every (store every n-th state)) may be
     given as a keyword: it overrides the problem's value, is validated by the same reader as a
     problem file, and is recorded in summary(). An unknown keyword is a TypeError naming the valid
     ones. The rest are run options: newton_absolute_tolerance, mirror (run the backward mirror

@@ -27,6 +27,7 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
                      options.history != HistoryKind::kDirect),
       use_history_(damped_ && !viscous_local_),
       has_forcing_(static_cast<bool>(problem.model.forcing)),
+      midpoint_force_(problem, options.load),
       u_time_dependent_(problem.model.potential && problem.model.potential->is_time_dependent()),
       diagnostics_(options.diagnostics),
       mass_(problem.model.mass.symmetric_part()),
@@ -160,7 +161,7 @@ Status CqMidpointStepper::advance() {
   const double tk = time(k), t_half = half_time(k), t_next = time(k + 1);
   const Eigen::VectorXd* f_ptr = nullptr;
   if (has_forcing_) {
-    problem_.model.forcing(t_half, f_mid_);
+    midpoint_force_(k, t_half, f_mid_);
     f_ptr = &f_mid_;
   }
 

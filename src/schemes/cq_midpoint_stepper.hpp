@@ -31,6 +31,7 @@
 #include <array>
 #include <memory>
 
+#include "forcing_moments.hpp"
 #include "fracvi/fractional/convolution_quadrature.hpp"
 #include "fracvi/memory/history.hpp"
 #include "fracvi/schemes/stepper.hpp"
@@ -89,6 +90,7 @@ class CqMidpointStepper final : public Stepper {
   // kTaylorSplit: H(τ) = jx τ^{ex} x_0 + jv τ^{ev} v_0 (τ = t − t_0); zero coefficients are absent.
   double jx_ = 0.0, ex_ = 0.0, jv_ = 0.0, ev_ = 0.0, poly_scale_ = 0.0;
   bool has_forcing_;
+  MidpointForce midpoint_force_;  // f at t_{k+½}, or its cell average (method.load)
   bool u_time_dependent_;
   bool diagnostics_;
 

@@ -20,6 +20,7 @@ const SchemeInfo kFviGl{
     .exact_balance = true,
     .fast_history = true,
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
+    .forcing_moments = true,  // method.load = "moments": the cell average of f
     .applies_to = "every model",
     .stability_rule = "lambda_max(M^-1 R) (h/2)^(2-2alpha) < 1",
     // The GL sum (for α = 1/2 the backward difference of Lemma 5.3) is first order; without

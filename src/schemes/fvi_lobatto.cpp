@@ -39,6 +39,7 @@
 #include <string>
 #include <vector>
 
+#include "forcing_moments.hpp"
 #include "fracvi/core/error.hpp"
 #include "fracvi/fractional/runge_kutta_cq.hpp"
 #include "fracvi/memory/block_history.hpp"
@@ -152,80 +153,6 @@ class PowerMoments {
   double gamma_, scale_;
   Eigen::VectorXd mu_;
   std::array<double, kSeriesTerms> binomial_{};
-};
-
-// ---------------------------------------------------------------------------------------------
-// The Galerkin moments of the forcing on interval n (method.load = "moments"): the d × s blocks
-//   value(:, k) = ∫_0^1 ℓ_k(σ) f(t_n + σh) dσ,   slope(:, k) = ∫_0^1 ℓ_k'(σ) f(t_n + σh) dσ.
-// The first interval by tanh–sinh quadrature (Boost.Math), per component and basis function: it
-// never evaluates f at the end points and converges for integrable end-point singularities such as
-// f ~ t^{−1/2} at t_0. Beyond, f is analytic near [t_n, t_{n+1}] for the forcings in question
-// (a singularity at t_0 lies one interval away), and 20-point Gauss–Legendre (f at 20 points,
-// combined with the precomputed ℓ_k and ℓ_k' values) is exact to round-off.
-class ForcingMoments {
- public:
-  static constexpr int kPoints = 20;
-
-  ForcingMoments(const LobattoNodes& nodes, const Forcing& forcing, Eigen::Index d)
-      : nodes_(nodes), forcing_(forcing), samples_(d, kPoints), scratch_(d) {
-    using Rule = boost::math::quadrature::gauss<double, kPoints>;
-    const auto& abscissa = Rule::abscissa();
-    const auto& weights = Rule::weights();
-    std::vector<std::pair<double, double>> rule;  // on [−1, 1]: ±x_i (20 points, even: no 0)
-    for (std::size_t i = 0; i < abscissa.size(); ++i) {
-      rule.emplace_back(-abscissa[i], weights[i]);
-      if (abscissa[i] != 0.0) rule.emplace_back(abscissa[i], weights[i]);
-    }
-    value_weights_.setZero(kPoints, nodes.s);
-    slope_weights_.setZero(kPoints, nodes.s);
-    for (int q = 0; q < kPoints; ++q) {
-      sigma_(q) = 0.5 * (rule[static_cast<std::size_t>(q)].first + 1.0);
-      const double w = 0.5 * rule[static_cast<std::size_t>(q)].second;
-      for (int k = 0; k < nodes.s; ++k) {
-        value_weights_(q, k) = w * polynomial(nodes.basis, k, sigma_(q));
-        slope_weights_(q, k) = w * polynomial(nodes.slope, k, sigma_(q));
-      }
-    }
-  }
-
-  void operator()(double tn, double h, bool first, Eigen::Ref<Eigen::MatrixXd> value,
-                  Eigen::Ref<Eigen::MatrixXd> slope) {
-    if (!first) {
-      for (int q = 0; q < kPoints; ++q) forcing_(tn + sigma_(q) * h, samples_.col(q));
-      value.noalias() = samples_ * value_weights_;
-      slope.noalias() = samples_ * slope_weights_;
-      return;
-    }
-    for (int k = 0; k < nodes_.s; ++k) {
-      for (Eigen::Index i = 0; i < samples_.rows(); ++i) {
-        auto component = [&](const Eigen::MatrixXd& coefficients) {
-          return tanh_sinh_.integrate(
-              [&](double sigma) {
-                forcing_(tn + sigma * h, scratch_);
-                return polynomial(coefficients, k, sigma) * scratch_(i);
-              },
-              0.0, 1.0);
-        };
-        value(i, k) = component(nodes_.basis);
-        slope(i, k) = component(nodes_.slope);
-      }
-    }
-  }
-
- private:
-  // Σ_m coefficients(k, m) σ^m (Horner).
-  static double polynomial(const Eigen::MatrixXd& coefficients, int k, double sigma) {
-    double value = 0.0;
-    for (Eigen::Index m = coefficients.cols() - 1; m >= 0; --m)
-      value = value * sigma + coefficients(k, m);
-    return value;
-  }
-  const LobattoNodes& nodes_;
-  const Forcing& forcing_;
-  Eigen::Matrix<double, kPoints, 1> sigma_;
-  Eigen::MatrixXd value_weights_, slope_weights_, samples_;
-  Eigen::VectorXd scratch_;
-  boost::math::quadrature::tanh_sinh<double> tanh_sinh_;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -463,7 +390,8 @@ class LobattoStepper final : public Stepper {
     }
     cur_.resize(d_, s_);
     if (forcing_moments_) {
-      forcing_load_ = std::make_unique<ForcingMoments>(nodes_, problem.model.forcing, d_);
+      forcing_load_ =
+          std::make_unique<ForcingMoments>(nodes_.basis, nodes_.slope, problem.model.forcing, d_);
       forcing_value_.setZero(d_, s_);
       forcing_slope_.setZero(d_, s_);
     }
@@ -760,7 +688,8 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
   std::unique_ptr<ForcingMoments> forcing_load;
   Eigen::MatrixXd forcing_value(d_, s_), forcing_slope(d_, s_);
   if (forcing_moments_) {
-    forcing_load = std::make_unique<ForcingMoments>(nodes_, problem_.model.forcing, d_);
+    forcing_load =
+        std::make_unique<ForcingMoments>(nodes_.basis, nodes_.slope, problem_.model.forcing, d_);
   }
   Blocks y;
   y.resize(d_, s_);

@@ -35,6 +35,7 @@
 #include <limits>
 #include <memory>
 
+#include "forcing_moments.hpp"
 #include "fracvi/fractional/convolution_quadrature.hpp"
 #include "fracvi/memory/history.hpp"
 #include "fracvi/schemes/stepper.hpp"
@@ -69,6 +70,7 @@ class TrapezoidalMidpointStepper final : public Stepper {
         has_forcing_(static_cast<bool>(problem.model.forcing)),
         u_time_dependent_(problem.model.potential && problem.model.potential->is_time_dependent()),
         diagnostics_(options.diagnostics),
+        midpoint_force_(problem, options.load),
         // The known parts (lag 1) of y_k = Σ_m c^{(β)}_m x̃̄_{k−m} and of Σ_m c^{(1−β)}_m z_{k−m}.
         difference_{CqScheme::kGrunwaldLetnikov, beta_, /*lag=*/1},
         average_{CqScheme::kGrunwaldLetnikov, 1.0 - beta_, /*lag=*/1},
@@ -197,6 +199,7 @@ class TrapezoidalMidpointStepper final : public Stepper {
   std::size_t n_steps_;
   double h_;
   bool damped_, has_forcing_, u_time_dependent_, diagnostics_;
+  MidpointForce midpoint_force_;  // f at t_{k+½}, or its cell average (method.load)
   ConvolutionQuadrature difference_, average_;
   double current_weight_;
   bool split_ = false;
@@ -221,7 +224,7 @@ Status TrapezoidalMidpointStepper::advance() {
   const double t_half = half_time(k);
   const Eigen::VectorXd* f_ptr = nullptr;
   if (has_forcing_) {
-    problem_.model.forcing(t_half, f_mid_);
+    midpoint_force_(k, t_half, f_mid_);
     f_ptr = &f_mid_;
   }
   // The node equation in the form MΔ_k/h + (h/2)∇U_f(x̄_k) + hĜ_k = q_k with
@@ -368,6 +371,7 @@ const SchemeInfo kFviMidpoint{
     .exact_balance = true,
     .fast_history = true,  // both memory sums are GL sums (orders 2α and 1 − 2α, lag 1)
     .momentum_quadrature = CqScheme::kTrapezoidal,
+    .forcing_moments = true,  // method.load = "moments": the cell average of f
     .applies_to = "0 <= 2alpha < 2",
     .stability_rule =
         "stable for every h (implicit damping; the Tustin image of the continuous "

@@ -27,6 +27,7 @@
 #include <limits>
 #include <span>
 
+#include "forcing_moments.hpp"
 #include "fracvi/core/matrix.hpp"
 #include "fracvi/schemes/options.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
@@ -47,6 +48,7 @@ double backward_mirror_run(const InitialValueProblem& problem, const IntegratorO
                           problem.t0, options.linear_solver);
     const Eigen::Index d = problem.model.dimension();
     const bool has_forcing = static_cast<bool>(problem.model.forcing);
+    MidpointForce midpoint_force(problem, options.load);
     auto half_time = [&](std::size_t i) { return problem.t0 + (static_cast<double>(i) + 0.5) * h; };
     Eigen::VectorXd y_next = problem.x0, y_k = x1, y_prev(d), known(d), g(d), f_tau(d), f_tau2(d),
                     c(d), ym(d), step(d);
@@ -61,8 +63,9 @@ double backward_mirror_run(const InitialValueProblem& problem, const IntegratorO
       const Eigen::VectorXd* f_known = nullptr;
       const Eigen::VectorXd* f_new = nullptr;
       if (has_forcing) {
-        problem.model.forcing(tau_known, f_tau);
-        problem.model.forcing(tau_new, f_tau2);
+        // The cells of the same times in x: n − kk − 1 and n − kk.
+        midpoint_force(n - kk - 1, tau_known, f_tau);
+        midpoint_force(n - kk, tau_new, f_tau2);
         f_known = &f_tau;
         f_new = &f_tau2;
       }

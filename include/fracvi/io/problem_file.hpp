@@ -91,7 +91,7 @@ struct ProblemSpec {
       IntegratorOptions{}.history_tolerance;  ///< per-weight relative accuracy of the fast history
   /// "auto", "dense", "banded" or "sparse" (Newton matrix)
   std::string linear_solver = std::string(to_string(IntegratorOptions{}.linear_solver));
-  /// "pointwise" or "moments" (how the forcing enters; moments: Lobatto schemes)
+  /// "pointwise" or "moments" (how the forcing enters)
   std::string load = std::string(to_string(IntegratorOptions{}.load));
   int threads =
       IntegratorOptions{}.threads;  ///< OpenMP threads over the degrees of freedom; 0 = all

@@ -28,8 +28,9 @@ enum class ForcingLoad {
   /// setting. A forcing that is not smooth at t_0 (e.g. √t) costs order there.
   kPointwise,
   /// The exact Galerkin moments h∫ ℓ_k(σ) f(t_n + σh) dσ against the scheme's interpolant (the
-  /// variational form of −∫ f·x dt), by tanh–sinh quadrature on the first interval (integrable
-  /// singularities at t_0) and 20-point Gauss–Legendre beyond. Lobatto schemes only.
+  /// variational form of −∫ f·x dt; for the midpoint schemes the cell average of f as their
+  /// midpoint force), by tanh–sinh quadrature on the first interval (integrable singularities at
+  /// t_0) and 20-point Gauss–Legendre beyond.
   kMoments,
 };
 std::optional<ForcingLoad> parse_forcing_load(std::string_view name);
