@@ -142,13 +142,33 @@ def test_numerical_failure_is_a_status(cli, write_file, tmp_path, text):
     assert np.array_equal(e.value.solution.x, sol.x)
 
 
+def test_health_checks_are_a_status(cli, write_file, tmp_path):
+    # U = -1/x1 from rest jumps across its singularity (docs/conventions.md, "When a run is not a
+    # success"): "inaccurate", the same in Python and on the command line, every row kept.
+    path = write_file(BLOWUP.replace('"-x1^4"', '"-1/x1"').replace("[1.0]\n[time]",
+                                                                  "[0.0]\n[time]")
+                      .replace("steps = 500", "steps = 1000"))
+    cli_summary = cli_run(cli, path, tmp_path / "cli")
+    sol = fracvi.integrate(path)
+    assert sol.status == "inaccurate" and not sol.ok
+    assert cli_summary["status"] == "inaccurate"
+    assert "energy balance error" in sol.message and "0.5 x the energy scale" in sol.message
+    assert sol.steps == 1000 and sol.x.shape == (1001, 1)
+    assert strip(sol.summary()) == strip(cli_summary)
+    with pytest.raises(fracvi.IntegrationError) as e:
+        fracvi.integrate(path, raise_on_failure=True)
+    assert e.value.status == "inaccurate"
+
+
 def test_partial_trajectory_is_the_start_of_the_full_one():
     # The failed run's rows are exactly the rows a run that does not fail computes.
     sol = fracvi.integrate(BLOWUP)
     assert sol.steps == 296
     shorter = fracvi.integrate(fracvi.Problem.from_toml(BLOWUP).with_overrides(
         "time.end=2.96", "time.steps=296"))
-    assert shorter.ok
+    # Run right up to the blow-up, the shorter run completes but is garbage by its own energy
+    # balance (docs/conventions.md, "When a run is not a success"); its rows are the same.
+    assert shorter.steps == 296 and shorter.status == "inaccurate"
     np.testing.assert_array_equal(shorter.x[:, 0], sol.x[:, 0])
     # raise_on_failure does not raise on success
     assert fracvi.integrate(PROBLEM, raise_on_failure=True).ok

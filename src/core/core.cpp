@@ -16,6 +16,8 @@ std::string_view to_string(Status status) {
     case Status::kNewtonFailure: return "newton-failure";
     case Status::kNonFinite: return "non-finite";
     case Status::kCallbackError: return "callback-error";
+    case Status::kUnstable: return "unstable";
+    case Status::kInaccurate: return "inaccurate";
   }
   return "unknown";
 }

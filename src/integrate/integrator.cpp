@@ -77,6 +77,23 @@ struct Integrator::Impl {
   Status status = Status::kRunning;
   double e0 = 0.0;
   double energy_k = 0.0, work_k = 0.0, balance_k = 0.0;  // at step k
+  double kinetic_k = 0.0, potential_k = 0.0;             // K_k, U_k (energy_k = K_k + U_k)
+
+  // Health checks (integrator.hpp): the quantities of the three rules.
+  double span;                    // T = t_end − t_0
+  Eigen::VectorXd m_times_x;      // workspace for ‖x‖_M
+  double state_base = 0.0;        // ‖x_0‖_M + T‖v_0‖_M
+  double energy_floor = 0.0;      // max(|E_0|, K_0 + |U_0|, S_R)
+  double max_supplied = 0.0;      // max_j |P_j|
+  double max_damping_work = 0.0;  // max_j D_j
+  double max_activity = 0.0;      // max_j (K_j + |U_j|)
+  double energy_scale = 0.0;      // S_k
+  double running_max = 0.0;       // max_{j≤k} ‖x_j‖_M
+  double checkpoint_max = 0.0;    // max_{j≤J'} ‖x_j‖_M at the last power of two J'
+  double growth_reference = 0.0;  // max_{j≤J} ‖x_j‖_M, J the power of two before J'
+  std::size_t next_checkpoint = 1;
+  bool supplied_known = false;  // P_k is available (tracked, or 0 by construction)
+  bool inaccurate = false;      // rule 3 tripped at some step (message kept in `message`)
 
   std::array<char, 480> message{};
   std::chrono::steady_clock::time_point clock_start;
@@ -90,7 +107,9 @@ struct Integrator::Impl {
         d(problem.model.dimension()),
         n_steps(problem.steps),
         h(problem.step_size()),
-        stepper(method.info().make_stepper(problem, options)) {
+        stepper(method.info().make_stepper(problem, options)),
+        span(problem.t_end - problem.t0),
+        m_times_x(d) {
     const auto rows = static_cast<Eigen::Index>(stored_rows(n_steps, options.save_every));
     sol.t = Eigen::VectorXd::Constant(rows, kNaN);
     sol.step.assign(static_cast<std::size_t>(rows), 0);
@@ -113,15 +132,104 @@ struct Integrator::Impl {
       energy_k = work_k = balance_k = kNaN;
       sol.max_balance_error = kNaN;
     }
+    init_health();
     store();
   }
 
-  // E_k = ½ v_kᵀ p_k + U(x_k, t_k) from the stepper's state.
-  [[nodiscard]] double energy(std::size_t i) const {
-    const double kinetic = 0.5 * stepper->velocity().dot(stepper->momentum());
-    return problem.model.potential
-               ? kinetic + problem.model.potential->value(stepper->position(), time(i))
-               : kinetic + 0.0;
+  // E_k = ½ v_kᵀ p_k + U(x_k, t_k) from the stepper's state; sets kinetic_k and potential_k.
+  [[nodiscard]] double energy(std::size_t i) {
+    kinetic_k = 0.5 * stepper->velocity().dot(stepper->momentum());
+    potential_k = problem.model.potential
+                      ? problem.model.potential->value(stepper->position(), time(i))
+                      : 0.0;
+    return kinetic_k + potential_k;
+  }
+
+  // ‖x‖_M = √(xᵀMx), the state norm of the growth rule (units √mass · length, like T√(2S)).
+  [[nodiscard]] double mass_norm(const Eigen::VectorXd& x) {
+    problem.model.mass.multiply(x, m_times_x);
+    return std::sqrt(std::max(0.0, x.dot(m_times_x)));
+  }
+
+  void init_health() {
+    const double x0 = mass_norm(problem.x0);
+    state_base = x0 + span * mass_norm(problem.v0);
+    running_max = checkpoint_max = x0;
+    // S_R: the energy the damping memory of the initial state can hand back (integrator.hpp).
+    double memory_energy = 0.0;
+    if (!problem.model.is_undamped()) {
+      problem.model.damping.multiply(problem.x0, m_times_x);
+      double q = problem.x0.dot(m_times_x);
+      problem.model.damping.multiply(problem.v0, m_times_x);
+      q += span * span * problem.v0.dot(m_times_x);
+      memory_energy = std::abs(q) * std::pow(span, -2.0 * problem.model.alpha);
+    }
+    energy_floor = memory_energy;
+    const bool time_dependent_u =
+        problem.model.potential && problem.model.potential->is_time_dependent();
+    supplied_known =
+        std::isfinite(stepper->supplied_work()) || (!problem.model.forcing && !time_dependent_u);
+    if (options.diagnostics) {
+      energy_floor = std::max({energy_floor, std::abs(e0), kinetic_k + std::abs(potential_k)});
+      max_activity = kinetic_k + std::abs(potential_k);
+    }
+    energy_scale = energy_floor;
+  }
+
+  // The three rules of integrator.hpp at step k (diagnostics already computed). Returns
+  // kUnstable (message written) or kSuccess; rule 3 only records the first step it trips at.
+  Status check_health() noexcept {
+    double tolerance_scale = 0.0;
+    if (options.diagnostics) {
+      max_activity = std::max(max_activity, kinetic_k + std::abs(potential_k));
+      double damping_work = kNaN;
+      if (supplied_known) {
+        const double supplied =
+            std::isfinite(stepper->supplied_work()) ? stepper->supplied_work() : 0.0;
+        max_supplied = std::max(max_supplied, std::abs(supplied));
+        damping_work = work_k + supplied;
+        max_damping_work = std::max(max_damping_work, damping_work);
+      }
+      energy_scale = std::max({energy_floor, max_supplied, max_damping_work});
+      tolerance_scale = std::max(energy_scale, kActivityFraction * max_activity);
+      // Rule 1: the damping put energy in.
+      if (damping_work < -kUnstableDampingFactor * tolerance_scale) {
+        std::snprintf(message.data(), message.size(),
+                      "unstable at step %zu (t = %.17g): the damping put energy in: its work "
+                      "W_k + (work of f) = %.6g is below -%g x the energy scale %.6g (an explicit "
+                      "damping memory past its stability bound, or a step too large)",
+                      k, time(k), damping_work, kUnstableDampingFactor, tolerance_scale);
+        return Status::kUnstable;
+      }
+      // Rule 3: the balance error (recorded once; the run goes on).
+      if (!inaccurate && std::abs(balance_k) > kInaccurateBalanceFraction * tolerance_scale) {
+        inaccurate = true;
+        std::snprintf(message.data(), message.size(),
+                      "inaccurate from step %zu (t = %.17g) on: the energy balance error "
+                      "|E_k + W_k - E_0| = %.6g exceeds %g x the energy scale %.6g (the steps do "
+                      "not resolve the motion: take more steps)",
+                      k, time(k), std::abs(balance_k), kInaccurateBalanceFraction, tolerance_scale);
+      }
+    }
+    // Rule 2: the state grew by orders of magnitude.
+    const double x_norm = mass_norm(stepper->position());
+    double base = std::max(state_base, growth_reference);
+    if (options.diagnostics) base = std::max(base, span * std::sqrt(2.0 * energy_scale));
+    if (base > 0.0 && x_norm > kUnstableGrowthFactor * base) {
+      std::snprintf(message.data(), message.size(),
+                    "unstable at step %zu (t = %.17g): the state grew by orders of magnitude: "
+                    "|x_k|_M = %.6g exceeds %g x its scale %.6g (the largest of |x_0|_M + "
+                    "T|v_0|_M, T sqrt(2 x energy scale) and |x_j|_M earlier in the run)",
+                    k, time(k), x_norm, kUnstableGrowthFactor, base);
+      return Status::kUnstable;
+    }
+    running_max = std::max(running_max, x_norm);
+    if (k == next_checkpoint) {
+      growth_reference = checkpoint_max;
+      checkpoint_max = running_max;
+      next_checkpoint *= 2;
+    }
+    return Status::kSuccess;
   }
 
   Eigen::Map<Eigen::VectorXd> row(RowMatrixXd& m, std::size_t i) {
@@ -210,9 +318,15 @@ struct Integrator::Impl {
       sol.max_balance_error = std::max(sol.max_balance_error, std::abs(balance_k));
     }
     sol.steps_done = k;
+    if (check_health() == Status::kUnstable) {
+      status = Status::kUnstable;
+      stop_clock();
+      store();  // the step that tripped the rule is the last row
+      return status;
+    }
     if (k % options.save_every == 0 || k == n_steps) store();
     if (k == n_steps) {
-      status = Status::kSuccess;
+      status = inaccurate ? Status::kInaccurate : Status::kSuccess;
       stop_clock();
     }
     return status;
@@ -294,9 +408,12 @@ Solution Integrator::take_solution() {
   s.message = im.status == Status::kSuccess || im.status == Status::kRunning
                   ? std::string()
                   : std::string(im.message.data());
+  if (im.status == Status::kRunning && im.inaccurate) {
+    s.message = std::string(im.message.data()) + "; ";
+  }
   if (im.status == Status::kRunning) {
-    s.message = "stopped by the caller after " + std::to_string(im.k) + " of " +
-                std::to_string(im.n_steps) + " steps";
+    s.message += "stopped by the caller after " + std::to_string(im.k) + " of " +
+                 std::to_string(im.n_steps) + " steps";
   }
   const auto rows = static_cast<Eigen::Index>(im.saved);
   s.step.resize(im.saved);

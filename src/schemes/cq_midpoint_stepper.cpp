@@ -106,8 +106,9 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
     fv_ = force_.dot(problem.v0);
     fw_ = force_.dot(w_);
     work_ = 0.0;
+    supplied_ = 0.0;
   } else {
-    work_ = kNaN;
+    work_ = supplied_ = kNaN;
   }
 }
 
@@ -225,10 +226,17 @@ Status CqMidpointStepper::advance() {
     work_ += 0.5 * h_ * (fv_ + fv_next) + 0.125 * h_ * h_ * (fw_next - fw_);
     // The extra start impulse (w − ½) h F_0 of the singular RL force, booked with v_0.
     if (k == 0) work_ += (start_force_weight_ - 0.5) * h_ * fv_;
-    if (has_forcing_) work_ -= f_mid_.dot(dx_);
+    // Subtracted term by term as before (bit-for-bit the same W_k), and summed for supplied_.
+    if (has_forcing_) {
+      const double fw = f_mid_.dot(dx_);
+      work_ -= fw;
+      supplied_ += fw;
+    }
     if (u_time_dependent_) {
       mid_ = xk + 0.5 * dx_;
-      work_ -= potential_value(mid_, t_next) - potential_value(mid_, tk);
+      const double du = potential_value(mid_, t_next) - potential_value(mid_, tk);
+      work_ -= du;
+      supplied_ += du;
     }
   }
   if (!v_next_.allFinite()) return fail(Status::kNonFinite, "non-finite velocity");

@@ -212,6 +212,43 @@ class Run(unittest.TestCase):
         with open(os.path.join(out, "trajectory.csv"), encoding="utf-8") as f:
             self.assertEqual(len(f.readlines()), summary["steps"] + 2)
 
+    # The run's health checks (docs/conventions.md, "When a run is not a success"): U = -1/x1
+    # falls from rest at x = 1 into its singularity at t = 1.11 and the step jumps across it
+    # (balance error 170 against E_0 = -1); U = -x1^4 from x = 1, v = 1 blows up in finite time
+    # (t = 0.9) and 50 steps run through it (balance error 2e17). Both used to end "success".
+    # Each ends "inaccurate" with exit 1, the message naming the quantity, its value and the rule,
+    # and every row written; the same problems before the singularity are a success.
+    SINGULAR = [
+        ("coulomb", "-1/x1", "0.0", "5.0", 1000, "1.0"),
+        ("quartic", "-x1^4", "1.0", "3.0", 50, "0.3"),
+    ]
+
+    def test_blow_up_and_singularity_are_not_success(self):
+        for name, potential, velocity, end, steps, safe_end in self.SINGULAR:
+            with self.subTest(name):
+                path = self.write(f'name = "{name}"\n[model]\ndim = 1\nmass = 1.0\nalpha = 0.5\n'
+                                  f'potential = "{potential}"\n[initial]\nposition = [1.0]\n'
+                                  f'velocity = [{velocity}]\n[time]\nend = {end}\n'
+                                  f'steps = {steps}\n')
+                out = os.path.join(self.dir, name)
+                r = run("run", path, "--out", out, "--no-plot")
+                self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+                self.assertIn("status            inaccurate: ", r.stdout)
+                with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+                    summary = json.load(f)
+                self.assertEqual(summary["status"], "inaccurate")
+                for needle in ("energy balance error |E_k + W_k - E_0| = ",
+                               "exceeds 0.5 x the energy scale", "from step "):
+                    self.assertIn(needle, summary["message"])
+                self.assertEqual(summary["steps"], steps)
+                self.assertGreater(summary["max_balance_error"], 1.0)
+                with open(os.path.join(out, "trajectory.csv"), encoding="utf-8") as f:
+                    self.assertEqual(len(f.readlines()), steps + 2)
+                # Negative control: the same problem stopped before the singularity.
+                r = run("run", path, "--out", out + "-safe", "--no-plot", "--quiet",
+                        "--set", f"time.end={safe_end}", "--set", "time.steps=3000")
+                self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+
     BAD = [
         ("unknown key", ("damping =", "dampng ="), ["model.dampng", "did you mean 'damping'"]),
         ("unknown section", ("[time]", "[timing]"), ["timing", "unknown"]),
