@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <map>
 #include <optional>
@@ -122,8 +123,29 @@ class Reader {
 
   double number(const toml::node& n, const std::string& key) const {
     if (!n.is_number()) fail(key, value_text(n) + "must be a number, got " + type_name(n));
-    const double v = *n.value<double>();
+    if (const auto* i = n.as_integer()) return exact_double(i->get(), key);
+    const double v = n.as_floating_point()->get();
     if (!std::isfinite(v)) fail(key, "= " + format_value(v) + " must be finite");
+    return v;
+  }
+  // An integer where a number is expected, converted only when the double holds it exactly:
+  // toml++'s value<double>() is empty beyond ±2^53 (and reading it anyway gave R = 6.95e-310 for
+  // damping = 1e17 written as an integer), and silently rounding would make the file say
+  // something the run does not do. 10^17 is exact (= 2^17·5^17); 2^53 + 1 is not.
+  double exact_double(std::int64_t value, const std::string& key) const {
+    const double v = static_cast<double>(value);
+    // v is within [−2^63, 2^63]; 2^63 itself is not an int64, so compare before converting back.
+    const bool exact = v < 0x1p63 && static_cast<std::int64_t>(v) == value;
+    if (!exact) {
+      const std::string digits = std::to_string(value);
+      const std::size_t sign = value < 0 ? 1 : 0;
+      const std::string as_float = digits.substr(0, sign + 1) + "." + digits.substr(sign + 1) +
+                                   "e" + std::to_string(digits.size() - sign - 1);
+      fail(key, "= " + digits +
+                    ": integers beyond 2^53 are not exactly representable as a double; write it "
+                    "as a float, e.g. " +
+                    as_float + " (rounded to the nearest double, " + format_value(v) + ")");
+    }
     return v;
   }
   long long integer(const toml::node& n, const std::string& key) const {

@@ -249,6 +249,35 @@ class Run(unittest.TestCase):
                         "--set", f"time.end={safe_end}", "--set", "time.steps=3000")
                 self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
 
+    def test_integers_are_read_exactly_or_refused(self):
+        # 10^17 and 2^60 are doubles: read exactly (10^17 used to run as R = 6.95e-310); 2^53 + 1
+        # is not: refused naming the key, the value and the rule (it used to pass the sign check).
+        out = os.path.join(self.dir, "exact")
+        r = run("run", "--out", out, "--no-plot", "--quiet", "--set", "time.steps=100",
+                "--set", "time.end=1", "--set", "model.damping=100000000000000000",
+                "--set", "model.mass=1152921504606846976")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+            model = json.load(f)["problem"]["model"]
+        self.assertEqual(model["damping"], 1e17)
+        self.assertEqual(model["mass"], 2.0**60)
+        for key, value in (("damping", "-9007199254740993"), ("mass", "9007199254740993")):
+            with self.subTest(key):
+                line = {"damping": "damping = [[0.2, 0.05], [0.05, 0.1]]",
+                        "mass": "mass = [[2.0, 0.5], [0.5, 1.0]]"}[key]
+                self.assertIn(line, PROBLEM)
+                path = self.write(PROBLEM.replace(line, f"{key} = {value}"))
+                never = os.path.join(self.dir, "never")
+                r = run("run", path, "--out", never)
+                self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+                self.assertEqual(r.stdout, "")
+                lines = r.stderr.strip().splitlines()
+                self.assertEqual(len(lines), 1, r.stderr)
+                self.assertIn(f"p.toml: model.{key} = {value}: integers beyond 2^53 are not "
+                              "exactly representable as a double; write it as a float, e.g. "
+                              f"{value[:-15]}.{value[-15:]}e15", lines[0])
+                self.assertFalse(os.path.exists(never))
+
     BAD = [
         ("unknown key", ("damping =", "dampng ="), ["model.dampng", "did you mean 'damping'"]),
         ("unknown section", ("[time]", "[timing]"), ["timing", "unknown"]),
