@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "fracvi/core/error.hpp"
+#include "fracvi/core/memory.hpp"
 
 namespace fracvi {
 
@@ -51,6 +52,7 @@ InitialValueProblem validated(InitialValueProblem problem, const Method& method,
                               const IntegratorOptions& options) {
   validate(problem);
   validate(options);
+  check_storage(problem, options);
   check_applicable(problem, method, options);
   return problem;
 }
@@ -61,6 +63,32 @@ std::size_t stored_rows(std::size_t n_steps, std::size_t every) {
 }
 
 }  // namespace
+
+void check_storage(const InitialValueProblem& problem, const IntegratorOptions& options) {
+  if (options.save_every < 1) return;  // validate(options) names it
+  // Per stored row (Solution): t, the step index, energy, dissipated, balance, and x, v.
+  const double d = static_cast<double>(problem.model.dimension());
+  const double row_bytes = 40.0 + 16.0 * d;
+  const double rows = static_cast<double>(stored_rows(problem.steps, options.save_every));
+  std::string advice;
+  if (const std::size_t memory = physical_memory_bytes(); memory != 0) {
+    // The smallest stride whose rows (about N/every + 2) take at most half of the memory.
+    const double budget = 0.5 * static_cast<double>(memory) / row_bytes - 2.0;
+    if (budget >= 1.0) {
+      advice = "; store fewer states with [output] every = n (n >= " +
+               format_number(std::ceil(static_cast<double>(problem.steps) / budget)) +
+               " keeps it within half of the memory) or take fewer steps";
+    } else {
+      advice = "; even two stored states do not fit: reduce model.dim";
+    }
+  }
+  check_fits_in_memory(rows * row_bytes,
+                       "time.steps = " + std::to_string(problem.steps) +
+                           " with output.every = " + std::to_string(options.save_every) +
+                           ": the stored trajectory (" + format_number(rows) + " states of " +
+                           format_number(d) + " positions and velocities)",
+                       advice);
+}
 
 struct Integrator::Impl {
   InitialValueProblem problem;  // the stepper refers to it: Impl never moves (held by pointer)

@@ -15,6 +15,7 @@
 #include <optional>
 #include <sstream>
 
+#include "fracvi/core/memory.hpp"
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/lagrangian/lagrangian.hpp"
 #include "fracvi/model/expression_potential.hpp"
@@ -24,6 +25,10 @@
 namespace fracvi {
 
 namespace {
+
+// The largest time.steps: the step index and every count stay far inside 64 bits, and a trajectory
+// of more steps would not be stored anyway (the memory check of the Integrator).
+constexpr long long kMaxSteps = 2'000'000'000LL;
 
 // The schema: section → allowed keys, from the one table of io/problem_schema.hpp. "" is the top
 // level; "model.chain" is a table in [model].
@@ -392,6 +397,16 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   // [model]
   const long long dim = r.integer(r.required("model", "dim", "the dimension d"), "model.dim");
   if (dim < 1) r.fail("model.dim", "= " + std::to_string(dim) + " must be at least 1");
+  // Every run stores at least two states (x and v, 16 bytes per coordinate each), besides the
+  // vectors of the problem: refuse a dimension that cannot fit before allocating any of them.
+  const double state_bytes = 32.0 * static_cast<double>(dim);
+  if (const std::size_t memory = physical_memory_bytes();
+      memory != 0 && state_bytes > static_cast<double>(memory)) {
+    r.fail("model.dim", "= " + std::to_string(dim) +
+                            ": the first and last state alone (x and v) need " +
+                            format_bytes(state_bytes) + ", more than this machine's memory (" +
+                            format_bytes(static_cast<double>(memory)) + ")");
+  }
   p.dim = static_cast<Eigen::Index>(dim);
   // A general Lagrangian replaces the mechanical fields (mass, damping, potential, force).
   const auto* lagrangian = r.find("model", "lagrangian");
@@ -536,6 +551,13 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     const double h = r.number(*step, "time.step");
     if (!(h > 0.0)) r.fail("time.step", "= " + format_value(h) + " must be positive");
     const double n = (p.end - p.start) / h;
+    // Before the conversion to an integer: a tiny step (1e-300) gives a count beyond long long,
+    // whose conversion is undefined behaviour.
+    if (!(n <= static_cast<double>(kMaxSteps))) {
+      r.fail("time.step", "= " + format_value(h) + " divides [" + format_value(p.start) + ", " +
+                              format_value(p.end) + "] into " + format_value(n, 3) +
+                              " steps, more than the limit of " + std::to_string(kMaxSteps));
+    }
     const double rounded = std::round(n);
     if (rounded < 1.0 || std::abs(n - rounded) > 1e-9 * rounded) {
       r.fail("time.step", "= " + format_value(h) + " does not divide [" + format_value(p.start) +
@@ -543,8 +565,10 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     }
     p.steps = static_cast<long long>(rounded);
   }
-  if (p.steps > 2'000'000'000LL)
-    r.fail("time.steps", "= " + std::to_string(p.steps) + " is too large");
+  if (p.steps > kMaxSteps) {
+    r.fail("time.steps", "= " + std::to_string(p.steps) + " is more than the limit of " +
+                             std::to_string(kMaxSteps));
+  }
 
   // [method]
   if (const auto* n = r.find("method", "scheme")) {

@@ -14,6 +14,8 @@ import tempfile
 import unittest
 
 FRACVI = None
+# examples/ of the source tree (a problem file for the commands that need one).
+FRACVI_EXAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "examples")
 
 
 def run(*args):
@@ -447,6 +449,112 @@ class Methods(unittest.TestCase):
                            "time.steps >= 61"):
                 self.assertIn(needle, r.stderr)
             self.assertFalse(os.path.exists(out))
+
+
+class Robustness(unittest.TestCase):
+    """Inputs that used to abort (exit 134) or lose a finished run: each is now one line on stderr
+    with the README's exit status (2: the input, found before step 1, no output directory; 1: the
+    results could not be written), and no temporary file is left behind."""
+
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.dir = self.tmp.name
+
+    def tearDown(self):
+        for root, dirs, _ in os.walk(self.dir):
+            for d in dirs:
+                os.chmod(os.path.join(root, d), 0o755)
+        self.tmp.cleanup()
+
+    def refused(self, needles, *args, status=2):
+        r = run(*args)
+        self.assertEqual(r.returncode, status, r.stdout + r.stderr)
+        self.assertEqual(r.stdout, "")
+        lines = r.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, r.stderr)
+        for needle in needles:
+            self.assertIn(needle, lines[0])
+        return lines[0]
+
+    def test_output_directory_is_checked_before_step_one(self):
+        a_file = os.path.join(self.dir, "a-file")
+        with open(a_file, "w", encoding="utf-8") as f:
+            f.write("not a directory\n")
+        cases = [
+            ("a file", a_file, ["--out " + a_file, "exists and is not a directory"]),
+            ("under a file", os.path.join(a_file, "out"), ["cannot create", "Not a directory"]),
+            ("name too long", os.path.join(self.dir, "n" * 300), ["File name too long"]),
+            ("not creatable", "/proc/fracvi-cli-test/out", ["cannot create the directory"]),
+        ]
+        if os.geteuid() != 0:  # root writes into a read-only directory anyway
+            read_only = os.path.join(self.dir, "read-only")
+            os.mkdir(read_only, 0o555)
+            cases.append(("read-only", os.path.join(read_only, "out"), ["Permission denied"]))
+        for what, out, needles in cases:
+            with self.subTest(what):
+                # 10^6 steps would take seconds: the refusal comes before the integration.
+                self.refused(["fracvi run: "] + needles, "run", "--out", out, "--no-plot",
+                             "--set", "time.steps=1000000")
+                self.refused(["fracvi convergence: "] + needles, "convergence",
+                             os.path.join(FRACVI_EXAMPLES, "damped_pendulum.toml"), "--steps",
+                             "100,200", "--out", out, "--no-plot")
+
+    def test_too_small_a_step_and_too_many_steps(self):
+        path = os.path.join(self.dir, "p.toml")
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(PROBLEM.replace("steps = 500", "step = 1e-300"))
+        out = os.path.join(self.dir, "never")
+        # (end - start)/step = 5e300 used to overflow the conversion to an integer step count.
+        self.refused(["p.toml: time.step = 1e-300 divides [0, 5] into 5e+300 steps",
+                      "more than the limit of 2000000000"], "run", path, "--out", out)
+        self.refused(["time.steps = 2000000001 is more than the limit of 2000000000"],
+                     "run", "--out", out, "--set", "time.steps=2000000001")
+        self.assertFalse(os.path.exists(out))
+
+    def test_memory_is_estimated_before_allocating(self):
+        memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        out = os.path.join(self.dir, "never")
+        # The stored trajectory: (N + 1) rows of 16 d + 40 bytes. steps = 2e9 (d = 1) is 112 GB;
+        # it used to be accepted and then die in std::bad_alloc.
+        needed = (2_000_000_000 + 1) * (16 + 40)
+        if needed > memory:
+            self.refused(["time.steps = 2000000000 with output.every = 1: the stored "
+                          "trajectory", "needs 112 GB, more than this machine's memory",
+                          "store fewer states with [output] every = n (n >= "],
+                         "run", "--out", out, "--set", "time.steps=2000000000")
+        # model.dim = 10^12: 32 TB for two states, refused before any vector is allocated.
+        self.refused(["model.dim = 1000000000000: the first and last state alone (x and v) "
+                      "need 32 TB, more than this machine's memory"],
+                     "run", "--out", out, "--set", "model.dim=1000000000000")
+
+    def test_singular_function_in_derivative(self):
+        self.refused(["fracvi derivative: --f = \"1/t\": the quadrature of D^alpha f(0.5) failed",
+                      "singular"],
+                     "derivative", "--alpha", "0.5", "--f", "1/t", "--a", "0", "--b", "1",
+                     "--t", "0.5")
+
+    def test_write_failure_after_the_run_leaves_no_temporary(self):
+        import resource
+        import signal
+
+        def small_files():  # files beyond 4 kB cannot be written (EFBIG instead of SIGXFSZ)
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))
+
+        out = os.path.join(self.dir, "full")
+        r = subprocess.run([FRACVI, "run", "--out", out, "--no-plot", "--quiet"],
+                           capture_output=True, text=True, timeout=120, preexec_fn=small_files)
+        self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+        lines = r.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, r.stderr)
+        self.assertIn("fracvi run: the results could not be written to " + out, lines[0])
+        self.assertIn("trajectory.csv.tmp: File too large", lines[0])
+        self.assertEqual(os.listdir(out), [])  # no .tmp, no probe file
+        # Negative control: the same run without the limit writes everything.
+        r = run("run", "--out", out, "--no-plot", "--quiet")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(sorted(os.listdir(out)), ["problem.toml", "summary.json",
+                                                   "trajectory.csv"])
 
 
 class Help(unittest.TestCase):

@@ -8,6 +8,7 @@
 #include <memory>
 #include <string>
 
+#include "fracvi/core/error.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/expression_potential.hpp"
 #include "fracvi/model/potential.hpp"
@@ -169,6 +170,36 @@ TEST(Health, HandSteppingReturnsTheStatus) {
   EXPECT_EQ(integ.step(), Status::kInaccurate);
   EXPECT_EQ(to_string(Status::kInaccurate), "inaccurate");
   EXPECT_EQ(to_string(Status::kUnstable), "unstable");
+}
+
+}  // namespace
+}  // namespace fracvi
+
+namespace fracvi {
+namespace {
+
+// The stored trajectory is allocated up front: a run that cannot fit is refused with the number
+// before anything is allocated (it used to be std::bad_alloc), and the stride the message advises
+// is accepted.
+TEST(Storage, TrajectoryBeyondMemoryIsRefusedWithTheNumber) {
+  InitialValueProblem p = damped_oscillator(0.5, 0.1, 1e-3, 100'000'000'000ULL);  // 10^11 steps
+  IntegratorOptions options;
+  try {
+    check_storage(p, options);
+    ADD_FAILURE() << "10^11 stored states (5.6 TB) accepted";
+  } catch (const ValidationError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("time.steps = 100000000000 with output.every = 1: the stored trajectory "
+                        "(100000000001 states of 1 positions and velocities) needs 5.6 TB, more "
+                        "than this machine's memory"),
+              std::string::npos)
+        << what;
+    const auto at = what.find("every = n (n >= ");
+    ASSERT_NE(at, std::string::npos) << what;
+    options.save_every = std::stoull(what.substr(at + 16));
+    EXPECT_NO_THROW(check_storage(p, options)) << "the advised every = " << options.save_every;
+  }
+  EXPECT_THROW({ const Integrator integ(p); }, ValidationError);
 }
 
 }  // namespace

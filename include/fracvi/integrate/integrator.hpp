@@ -140,6 +140,12 @@ class Integrator {
   std::unique_ptr<Impl> impl_;
 };
 
+/// Throws ValidationError when the stored trajectory of `problem` with `options` (rows × (16 d +
+/// 40) bytes, allocated up front by the Integrator) would not fit in the machine's physical
+/// memory, with the number and the smallest [output] every that fits in half of it. The
+/// Integrator's constructor calls it; fracvi::prepare_run too.
+void check_storage(const InitialValueProblem& problem, const IntegratorOptions& options);
+
 /// One call: validate, integrate to t_end, run the mirror check (if enabled), return.
 Solution integrate(const InitialValueProblem& problem, const Method& method = fvi_gl(),
                    const IntegratorOptions& options = {});
