@@ -120,8 +120,9 @@ struct Integrator::Impl {
   double checkpoint_max = 0.0;    // max_{j≤J'} ‖x_j‖_M at the last power of two J'
   double growth_reference = 0.0;  // max_{j≤J} ‖x_j‖_M, J the power of two before J'
   std::size_t next_checkpoint = 1;
-  bool supplied_known = false;  // P_k is available (tracked, or 0 by construction)
-  bool inaccurate = false;      // rule 3 tripped at some step (message kept in `message`)
+  bool supplied_known = false;      // P_k is available (tracked, or 0 by construction)
+  bool memory_is_a_source = false;  // RL memory of x(0): rule 1 off (init_health)
+  bool inaccurate = false;          // rule 3 tripped at some step (message kept in `message`)
 
   std::array<char, 480> message{};
   std::chrono::steady_clock::time_point clock_start;
@@ -197,6 +198,13 @@ struct Integrator::Impl {
         problem.model.potential && problem.model.potential->is_time_dependent();
     supplied_known =
         std::isfinite(stepper->supplied_work()) || (!problem.model.forcing && !time_dependent_u);
+    // Riemann–Liouville with x(0) ≠ 0 and 0 < 2α < 1: the memory of the constant x(0) is a force
+    // R x(0) t^{−2α}/Γ(1−2α) that acts like an external one and legitimately puts energy in (its
+    // integrable singularity at t = 0 delivers a kick of order R x(0) h^{1−2α}), so the damping's
+    // work is no evidence of instability there and rule 1 is off.
+    const double beta = 2.0 * problem.model.alpha;
+    memory_is_a_source = problem.model.convention == Convention::kRiemannLiouville && beta > 0.0 &&
+                         beta < 1.0 && !problem.x0.isZero(0.0) && !problem.model.is_undamped();
     if (options.diagnostics) {
       energy_floor = std::max({energy_floor, std::abs(e0), kinetic_k + std::abs(potential_k)});
       max_activity = kinetic_k + std::abs(potential_k);
@@ -211,7 +219,7 @@ struct Integrator::Impl {
     if (options.diagnostics) {
       max_activity = std::max(max_activity, kinetic_k + std::abs(potential_k));
       double damping_work = kNaN;
-      if (supplied_known) {
+      if (supplied_known && !memory_is_a_source) {
         const double supplied =
             std::isfinite(stepper->supplied_work()) ? stepper->supplied_work() : 0.0;
         max_supplied = std::max(max_supplied, std::abs(supplied));

@@ -22,7 +22,8 @@
 //   1. unstable (stop): D_k < −kUnstableDampingFactor · S̃_k — the damping, which can only remove
 //      energy, has put in ten times the energy scale (an explicit damping memory past its
 //      stability bound). Needs the diagnostics and P_k (known when the scheme tracks it, or 0
-//      when f = 0 and U does not depend on t).
+//      when f = 0 and U does not depend on t); off for Riemann–Liouville with x(0) ≠ 0 and
+//      0 < 2α < 1, whose memory of x(0) is a force that legitimately puts energy in.
 //   2. unstable (stop): ‖x_k‖_M > kUnstableGrowthFactor · B_k with
 //      B_k = max(‖x_0‖_M + T‖v_0‖_M, T√(2 S_k), max_{j≤J} ‖x_j‖_M), J the largest power of two
 //      ≤ k/2 (the state earlier in the run, so that growth polynomial in t never trips it):
