@@ -670,6 +670,18 @@ namespace {
 toml::array to_toml_array(const nlohmann::json& a, const std::string& source,
                           const std::string& key);
 
+// A JSON integer as TOML's 64-bit signed integer: nlohmann keeps integers above INT64_MAX as
+// unsigned, and get<int64_t>() would wrap them to negative numbers (18446744073709551615 → −1).
+std::int64_t json_integer(const nlohmann::json& v, const std::string& source,
+                          const std::string& key) {
+  if (v.is_number_unsigned() && v.get<std::uint64_t>() > static_cast<std::uint64_t>(INT64_MAX)) {
+    throw ProblemFileError(source + ": " + key + " = " + std::to_string(v.get<std::uint64_t>()) +
+                           " does not fit a 64-bit integer; write it as a float, e.g. " +
+                           format_value(v.get<double>()));
+  }
+  return v.get<std::int64_t>();
+}
+
 // JSON → TOML, so that one reader validates both.
 toml::table to_toml_table(const nlohmann::json& object, const std::string& source,
                           const std::string& prefix) {
@@ -685,7 +697,7 @@ toml::table to_toml_table(const nlohmann::json& object, const std::string& sourc
     } else if (v.is_boolean()) {
       t.insert(k, v.get<bool>());
     } else if (v.is_number_integer()) {
-      t.insert(k, v.get<int64_t>());
+      t.insert(k, json_integer(v, source, key));
     } else if (v.is_number()) {
       t.insert(k, v.get<double>());
     } else {
@@ -704,7 +716,7 @@ toml::array to_toml_array(const nlohmann::json& a, const std::string& source,
     } else if (v.is_string()) {
       out.push_back(v.get<std::string>());
     } else if (v.is_number_integer()) {
-      out.push_back(v.get<int64_t>());
+      out.push_back(json_integer(v, source, key));
     } else if (v.is_number()) {
       out.push_back(v.get<double>());
     } else if (v.is_boolean()) {

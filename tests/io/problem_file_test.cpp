@@ -120,6 +120,20 @@ TEST(ProblemFile, IntegersAreReadExactlyOrRefused) {
   const std::string largest = error_of(kBase, {"time.end=9223372036854775807"});
   EXPECT_NE(largest.find("time.end = 9223372036854775807: integers beyond 2^53"), std::string::npos)
       << largest;
+  // JSON (the C++ API and Python dicts): integers above INT64_MAX are refused, not wrapped.
+  nlohmann::json j = to_json(parse(kBase));
+  j["model"]["damping"] = std::uint64_t{18446744073709551615ULL};
+  try {
+    parse_problem_json(j, "dict");
+    ADD_FAILURE() << "2^64 - 1 accepted";
+  } catch (const ProblemFileError& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "dict: model.damping = 18446744073709551615 does not fit a 64-bit integer"),
+              std::string::npos)
+        << e.what();
+  }
+  j["model"]["damping"] = std::uint64_t{100000000000000000ULL};  // unsigned but exact: 1e17
+  EXPECT_EQ(parse_problem_json(j, "dict").damping.coeff(0, 0), 1e17);
   // The float form the message suggests is accepted (rounded to the nearest double).
   EXPECT_EQ(
       parse(with("damping = [0.1, 0.2]", "damping = 9.007199254740993e15")).damping.coeff(0, 0),
