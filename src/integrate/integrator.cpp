@@ -124,6 +124,7 @@ struct Integrator::Impl {
   bool supplied_known = false;      // P_k is available (tracked, or 0 by construction)
   bool memory_is_a_source = false;  // RL memory of x(0): rule 1 off (init_health)
   bool inaccurate = false;          // rule 3 tripped at some step (message kept in `message`)
+  std::size_t inaccurate_step = 0;  // the first step rule 3 tripped at
 
   std::array<char, 480> message{};
   std::chrono::steady_clock::time_point clock_start;
@@ -248,6 +249,7 @@ struct Integrator::Impl {
       // Rule 3: the balance error (recorded once; the run goes on).
       if (!inaccurate && std::abs(balance_k) > kInaccurateBalanceFraction * tolerance_scale) {
         inaccurate = true;
+        inaccurate_step = k;
         std::snprintf(message.data(), message.size(),
                       "inaccurate from step %zu (t = %.17g) on: the energy balance error "
                       "|E_k + W_k - E_0| = %.6g exceeds %g x the energy scale %.6g (the steps do "
@@ -452,6 +454,12 @@ Solution Integrator::take_solution() {
   s.message = im.status == Status::kSuccess || im.status == Status::kRunning
                   ? std::string()
                   : std::string(im.message.data());
+  // A run that fails after rule 3 tripped says so too: the failure may be its consequence.
+  if (im.inaccurate && im.status != Status::kInaccurate && im.status != Status::kRunning) {
+    s.message += " (the energy balance error had exceeded " +
+                 format_number(kInaccurateBalanceFraction) + " x the energy scale from step " +
+                 std::to_string(im.inaccurate_step) + " on)";
+  }
   if (im.status == Status::kRunning && im.inaccurate) {
     s.message = std::string(im.message.data()) + "; ";
   }

@@ -131,6 +131,14 @@ TEST(Health, FiniteTimeBlowUpIsNotSuccess) {
   const Solution blow_up = integrate(expression_problem("-x1^4", 1.0, 1.0, 3.0, 50));
   EXPECT_EQ(blow_up.status, Status::kInaccurate) << blow_up.message;
   EXPECT_FALSE(blow_up.ok());
+  // With 400 steps to t = 3 the balance trips first (step 75), then Newton fails (step 86):
+  // the failure's message says that the balance had failed before.
+  const Solution newton = integrate(expression_problem("-x1^4", 1.0, 2.0, 3.0, 400));
+  EXPECT_EQ(newton.status, Status::kNewtonFailure) << newton.message;
+  EXPECT_NE(newton.message.find("(the energy balance error had exceeded 0.5 x the energy scale "
+                                "from step "),
+            std::string::npos)
+      << newton.message;
   const Solution early = integrate(expression_problem("-x1^4", 1.0, 1.0, 0.3, 3000));
   EXPECT_EQ(early.status, Status::kSuccess) << early.message;
 }
