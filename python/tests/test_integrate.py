@@ -255,3 +255,18 @@ def test_schemes_and_schema_keywords(cli, write_file, tmp_path):
         fracvi.integrate(path, schem="fvi-bdf2")
     with pytest.raises(fracvi.ProblemError, match="fvi-gl, fvi-bdf2"):
         fracvi.integrate(path, scheme="fvi-bdf3")
+
+
+def test_memory_is_estimated_before_allocating():
+    # The stored trajectory ((N + 1) rows of 16 d + 40 bytes) is refused with the number, as on
+    # the command line, instead of a MemoryError (or the OOM killer) after the set-up.
+    memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    if (2_000_000_000 + 1) * (16 * 2 + 40) <= memory:
+        pytest.skip("this machine could hold 2e9 stored states of d = 2")
+    with pytest.raises(fracvi.ProblemError) as e:
+        fracvi.integrate(fracvi.Problem.from_toml(PROBLEM).with_overrides("time.steps=2000000000"))
+    message = str(e.value)
+    assert "time.steps = 2000000000 with output.every = 1: the stored trajectory" in message
+    assert "more than this machine's memory" in message and "[output] every = n" in message
+    with pytest.raises(fracvi.ProblemError, match="model.dim = 1000000000000: the first and last"):
+        fracvi.Problem.from_toml(PROBLEM).with_overrides("model.dim=1000000000000")
