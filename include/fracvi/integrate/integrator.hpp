@@ -29,8 +29,11 @@
 //      ≤ k/2 (the state earlier in the run, so that growth polynomial in t never trips it):
 //      eight orders of magnitude beyond what the initial state, the energy budget and the run so
 //      far explain. The only rule without diagnostics (then without the T√(2S_k) term).
-//   3. inaccurate (marked, the run goes on): |E_k + W_k − E_0| > kInaccurateBalanceFraction · S̃_k
-//      at some step; the status at the end is then kInaccurate with the first such step named.
+//   3. inaccurate (marked at the end, the run goes on): max_k |E_k + W_k − E_0| >
+//      kInaccurateBalanceFraction · S̃_N with the scale of the whole run (a run from rest has tiny
+//      energies in its first steps, where an O(h^p) balance error is relatively large but
+//      absolutely negligible); the message names the step of the largest error. Without P_k the
+//      largest |W_j| (which contains it) enters S_k.
 // Healthy runs stay far from every bound (margins measured on examples/, docs/conventions.md).
 //
 // Usage — one call:
