@@ -95,12 +95,17 @@ TEST(Health, ExplicitMemoryPastItsBoundIsUnstable) {
       const Solution bad = integrate(above, Method(forced), options);
       EXPECT_EQ(bad.status, Status::kUnstable) << label << ": " << bad.message;
       EXPECT_LT(bad.steps_done, steps) << label;
-      EXPECT_NE(bad.message.find("damping put energy in"), std::string::npos) << bad.message;
+      // Rule 1 for the midpoint schemes; the Lobatto schemes book a positive damping work past
+      // their bound, and rule 2 stops them.
+      EXPECT_TRUE(bad.message.find("damping put energy in") != std::string::npos ||
+                  bad.message.find("grew by orders of magnitude") != std::string::npos)
+          << bad.message;
       // The trajectory so far, ending with the step that tripped the rule, and still finite:
       // the run stopped long before the 1e121 of the unchecked run.
       ASSERT_EQ(bad.x.rows(), static_cast<Eigen::Index>(bad.steps_done + 1)) << label;
       EXPECT_TRUE(bad.x.allFinite()) << label;
-      EXPECT_LT(bad.x.cwiseAbs().maxCoeff(), 1e6) << label;
+      // (rule 2 trips at 1e8 x its scale, here at most T·√(2S) = 200 · 1 for E_0 = ½)
+      EXPECT_LT(bad.x.cwiseAbs().maxCoeff(), 1e12) << label;
 
       // Without diagnostics only the growth rule runs: it stops the run too, later.
       options.diagnostics = false;
@@ -108,7 +113,7 @@ TEST(Health, ExplicitMemoryPastItsBoundIsUnstable) {
       EXPECT_EQ(blind.status, Status::kUnstable) << label << ": " << blind.message;
       EXPECT_NE(blind.message.find("grew by orders of magnitude"), std::string::npos)
           << blind.message;
-      EXPECT_GT(blind.steps_done, bad.steps_done) << label;
+      EXPECT_GE(blind.steps_done, bad.steps_done) << label;
       const Solution blind_ok = integrate(below, Method(*info), options);
       EXPECT_EQ(blind_ok.status, Status::kSuccess) << label << ": " << blind_ok.message;
     }

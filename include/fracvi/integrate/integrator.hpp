@@ -12,7 +12,7 @@
 // Health checks (DESIGN §4.2: `success` means the run's own diagnostics found nothing wrong).
 // After every step k the Integrator applies three rules (docs/conventions.md, "When a run is not a
 // success"). With T = t_end − t_0, K_j = ½v_jᵀMv_j, U_j = U(x_j, t_j), ‖x‖_M = √(Σ M_ii x_i²):
-//   energy scale  S_k = max(|E_0|, K_0 + |U_0|, S_R, max_{j≤k} |P_j|, max_{j≤k} D_j), where P_j is
+//   energy scale  S_k = max(|E_0|, K_0 + |U_0|, S_R, max_{j≤k} |P_j|), where P_j is
 //                 the work put in by f and by the explicit time dependence of U
 //                 (Stepper::supplied_work), D_j = W_j + P_j the work of the damping alone, and
 //                 S_R = (x_0ᵀRx_0 + T² v_0ᵀRv_0)·T^{−2α} the energy the damping memory of the
