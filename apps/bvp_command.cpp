@@ -86,11 +86,12 @@ Command add_bvp_command(CLI::App& parent) {
     } catch (const ValidationError& e) {
       throw UsageError(spec.source + ": " + e.what());
     }
-    const std::filesystem::path dir = opt->out.empty()
-                                          ? std::filesystem::path("fracvi-out") / spec.name
-                                          : std::filesystem::path(opt->out);
+    const std::filesystem::path dir =
+        prepare_output(opt->out, std::filesystem::path("fracvi-out") / spec.name);
     const BvpSolution solution = solve_bvp(problem, options);
-    write_bvp_output(dir, spec, solution);
+    if (!write_results("bvp", dir, [&] { write_bvp_output(dir, spec, solution); })) {
+      return kExitNumericalFailure;
+    }
     if (!opt->quiet) {
       const Eigen::Index n = solution.x.rows() - 1;
       std::printf("fracvi bvp: %s  (d = %lld, alpha = %g, N = %lld, %s, %s action sum)\n",

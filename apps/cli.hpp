@@ -4,6 +4,8 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
 #include <cstdio>
+#include <filesystem>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -51,6 +53,18 @@ inline std::string row_text(
   if (n > kShown) s += " (" + std::to_string(n) + " entries)";
   return s;
 }
+
+/// The output directory, prepared before any work (fracvi::prepare_output_directory): a directory
+/// that cannot be created or written is bad input (exit 2) naming the option, found before step 1.
+/// `given` is the --out argument ("" for the default `fallback`).
+std::filesystem::path prepare_output(const std::string& given,
+                                     const std::filesystem::path& fallback);
+
+/// Writes a command's results with `write`; an I/O failure after the computation (disk full, the
+/// directory removed meanwhile) is one line on stderr naming the directory and the reason, and
+/// returns false (the command then exits 1: the results are lost, not the input wrong).
+bool write_results(const char* command, const std::filesystem::path& dir,
+                   const std::function<void()>& write);
 
 /// Each command registers itself on the app and returns the function that runs it.
 struct Command {

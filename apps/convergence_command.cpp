@@ -64,14 +64,26 @@ Command add_convergence_command(CLI::App& parent) {
                        " formulas, the problem's dimension is " + std::to_string(spec.dim));
     }
     if (opt->reference_steps > 0 && opt->reference.empty()) exact.clear();
+    // The output directory before the study (which may run for long), but bad input found by
+    // the study itself (--steps, a step count beyond the stability bound) leaves no directory.
+    const std::filesystem::path fallback =
+        std::filesystem::path("fracvi-out") / (spec.name + "-convergence");
+    const std::filesystem::path requested =
+        opt->out.empty() ? fallback : std::filesystem::path(opt->out);
+    std::error_code ec;
+    const bool existed = std::filesystem::exists(requested, ec);
+    const std::filesystem::path dir = prepare_output(opt->out, fallback);
+    const auto refuse = [&](const std::string& what) {
+      if (!existed) std::filesystem::remove(dir, ec);  // only if still empty
+      throw UsageError(what);
+    };
     ConvergenceStudy study;
     try {
       study = convergence_study(spec, opt->steps, exact, opt->reference_steps);
     } catch (const ExpressionError& e) {
-      throw UsageError("--reference: " + e.reason() + " at column " +
-                       std::to_string(e.column() + 1));
+      refuse("--reference: " + e.reason() + " at column " + std::to_string(e.column() + 1));
     } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
+      refuse(e.what());
     }
 
     std::printf("fracvi convergence: %s  (alpha = %g, scheme %s, declared order %d)\n",
@@ -94,17 +106,17 @@ Command add_convergence_command(CLI::App& parent) {
     std::printf("least-squares order: %.4f (declared %d)\n", study.fitted_order,
                 study.declared_order);
 
-    const std::filesystem::path dir =
-        opt->out.empty() ? std::filesystem::path("fracvi-out") / (spec.name + "-convergence")
-                         : std::filesystem::path(opt->out);
-    std::filesystem::create_directories(dir);
-    std::ofstream(dir / "convergence.csv") << csv;
     const nlohmann::json meta{{"problem", to_json(spec)},
                               {"reference", study.reference},
                               {"declared_order", study.declared_order},
                               {"fitted_order", study.fitted_order},
                               {"method", "fvi-gl"}};
-    std::ofstream(dir / "convergence.json") << meta.dump(2) << '\n';
+    if (!write_results("convergence", dir, [&] {
+          write_file_atomically(dir / "convergence.csv", csv);
+          write_file_atomically(dir / "convergence.json", meta.dump(2) + "\n");
+        })) {
+      return kExitNumericalFailure;
+    }
     std::string note;
     if (!opt->no_plot) note = draw_convergence_plot(dir);
     std::printf(

@@ -85,7 +85,16 @@ Command add_derivative_command(CLI::App& parent) {
     const auto df_fn = [&df](double t) { return df({t}); };
     std::string out;
     for (double t : o.t) {
-      const double value = rl_derivative(o.alpha, side, f_fn, df_fn, o.a, o.b, t);
+      double value = 0.0;
+      try {
+        value = rl_derivative(o.alpha, side, f_fn, df_fn, o.a, o.b, t);
+      } catch (const std::exception& e) {
+        // Boost's tanh-sinh quadrature refuses an integrand that is infinite inside [a, b]
+        // (evaluation_error, e.g. f = 1/t on [0, 1]): the function is not one this command can
+        // differentiate, so it is bad input, said in one line.
+        throw UsageError("--f = \"" + o.f + "\": the quadrature of D^alpha f(" + format_number(t) +
+                         ") failed (" + e.what() + ")");
+      }
       out += format_number(t) + ' ' + format_number(value);
       if (exact) {
         const double e = (*exact)({t});

@@ -1,5 +1,8 @@
 // fracvi: the command-line front end. Each subcommand lives in its own *_command.cpp.
+#include <filesystem>
 #include <iostream>
+#include <new>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -46,11 +49,34 @@ int main(int argc, char** argv) {
 
   for (auto& command : commands) {
     if (!command.app->parsed()) continue;
+    const std::string where = "fracvi " + command.app->get_name() + ": ";
+    // Every failure is one line on stderr and an exit status of the README's contract, never an
+    // abort: input the commands did not classify themselves is still input (exit 2) when it is
+    // an invalid argument, an output path or more memory than the machine has; anything else is a
+    // failure of the computation (exit 1).
     try {
       return command.run();
     } catch (const UsageError& e) {
-      std::cerr << "fracvi " << command.app->get_name() << ": " << e.what() << '\n';
+      std::cerr << where << e.what() << '\n';
       return kExitBadInput;
+    } catch (const std::bad_alloc&) {
+      std::cerr << where
+                << "out of memory: the problem needs more memory than is available (reduce "
+                   "model.dim or time.steps, or store fewer states with [output] every)\n";
+      return kExitBadInput;
+    } catch (const std::length_error& e) {
+      std::cerr << where << "a size beyond what can be allocated (" << e.what()
+                << "): reduce model.dim or time.steps\n";
+      return kExitBadInput;
+    } catch (const std::filesystem::filesystem_error& e) {
+      std::cerr << where << e.path1().string() << ": " << e.code().message() << '\n';
+      return kExitBadInput;
+    } catch (const std::invalid_argument& e) {
+      std::cerr << where << e.what() << '\n';
+      return kExitBadInput;
+    } catch (const std::exception& e) {
+      std::cerr << where << "error: " << e.what() << '\n';
+      return kExitNumericalFailure;
     }
   }
   return kExitBadInput;

@@ -9,6 +9,7 @@
 
 #include "cli.hpp"
 #include "fracvi/analysis/convergence.hpp"
+#include "fracvi/core/error.hpp"
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/io/lagrangian_problem.hpp"
@@ -57,17 +58,28 @@ Command add_run_command(CLI::App& parent) {
     const ProblemSpec& spec = prepared.spec;
     const InitialValueProblem& problem = prepared.problem;
     const IntegratorOptions& options = prepared.options;
-    const std::filesystem::path dir = opt->out.empty()
-                                          ? std::filesystem::path("fracvi-out") / spec.name
-                                          : std::filesystem::path(opt->out);
+
+    // Everything that can fail before step 1 fails here, in this order: the set-up of the
+    // integrator (its storage and the scheme's workspace are allocated now), then the output
+    // directory (created and tested for writing), so that neither is found out after the run.
+    std::unique_ptr<Integrator> integrator;
+    try {
+      integrator = std::make_unique<Integrator>(problem, prepared.method, options);
+    } catch (const ValidationError& e) {
+      throw UsageError(spec.source + ": " + e.what());
+    }
+    const std::filesystem::path dir =
+        prepare_output(opt->out, std::filesystem::path("fracvi-out") / spec.name);
 
     Solution solution;
     {
       ProgressBar progress(problem.steps, !opt->quiet);
-      solution = integrate(problem, prepared.method, options,
-                           [&progress](const StepView& s) { progress.update(s.k); });
+      integrator->run([&progress](const StepView& s) { progress.update(s.k); });
+      solution = integrator->take_solution();
     }
-    write_run_output(dir, spec, solution);
+    if (!write_results("run", dir, [&] { write_run_output(dir, spec, solution); })) {
+      return kExitNumericalFailure;
+    }
 
     std::string plot_note;
     if (!opt->no_plot) plot_note = draw_plots(dir, opt->quiet);

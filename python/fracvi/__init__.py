@@ -294,7 +294,8 @@ class Solution:
     energy = _view("energy", "E_k (NaN with diagnostics=False)")
     dissipated = _view("dissipated", "W_k (NaN with diagnostics=False)")
     balance = _view("balance", "E_k + W_k − E_0 (NaN with diagnostics=False)")
-    status = _view("status", '"success", "newton-failure", "non-finite" or "callback-error"')
+    status = _view("status", '"success", "newton-failure", "non-finite", "callback-error", '
+                   '"unstable" or "inaccurate" (docs/conventions.md)')
     ok = _view("ok", "status == 'success'")
     message = _view("message", "empty on success; otherwise the step, the time and the cause")
     steps = _view("steps", "completed steps (rows 0 … steps are valid)")
@@ -351,8 +352,9 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostic
     history, else "auto", "direct" or "fast"), start ("legendre": the discrete Legendre
     transform, or "euler": first-order x_1 = x_0 + h v_0, for comparisons).
 
-    Numerical failure (Newton not converging, non-finite values) returns a Solution with status
-    != "success", its message and the trajectory so far; raise_on_failure=True raises
+    Numerical failure (Newton not converging, non-finite values, a run found "unstable" or
+    "inaccurate" by its health checks) returns a Solution with status != "success", its message
+    and the trajectory so far; raise_on_failure=True raises
     IntegrationError instead (with .solution). Bad input raises ProblemError / ValueError.
     """
     problem = _with_fields(_as_problem(problem), fields, "integrate", _FIELD_SECTIONS,

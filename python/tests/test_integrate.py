@@ -142,13 +142,33 @@ def test_numerical_failure_is_a_status(cli, write_file, tmp_path, text):
     assert np.array_equal(e.value.solution.x, sol.x)
 
 
+def test_health_checks_are_a_status(cli, write_file, tmp_path):
+    # U = -1/x1 from rest jumps across its singularity (docs/conventions.md, "When a run is not a
+    # success"): "inaccurate", the same in Python and on the command line, every row kept.
+    path = write_file(BLOWUP.replace('"-x1^4"', '"-1/x1"').replace("[1.0]\n[time]",
+                                                                  "[0.0]\n[time]")
+                      .replace("steps = 500", "steps = 1000"))
+    cli_summary = cli_run(cli, path, tmp_path / "cli")
+    sol = fracvi.integrate(path)
+    assert sol.status == "inaccurate" and not sol.ok
+    assert cli_summary["status"] == "inaccurate"
+    assert "energy balance error" in sol.message and "0.5 x the energy scale" in sol.message
+    assert sol.steps == 1000 and sol.x.shape == (1001, 1)
+    assert strip(sol.summary()) == strip(cli_summary)
+    with pytest.raises(fracvi.IntegrationError) as e:
+        fracvi.integrate(path, raise_on_failure=True)
+    assert e.value.status == "inaccurate"
+
+
 def test_partial_trajectory_is_the_start_of_the_full_one():
     # The failed run's rows are exactly the rows a run that does not fail computes.
     sol = fracvi.integrate(BLOWUP)
     assert sol.steps == 296
     shorter = fracvi.integrate(fracvi.Problem.from_toml(BLOWUP).with_overrides(
         "time.end=2.96", "time.steps=296"))
-    assert shorter.ok
+    # Run right up to the blow-up, the shorter run completes but is garbage by its own energy
+    # balance (docs/conventions.md, "When a run is not a success"); its rows are the same.
+    assert shorter.steps == 296 and shorter.status == "inaccurate"
     np.testing.assert_array_equal(shorter.x[:, 0], sol.x[:, 0])
     # raise_on_failure does not raise on success
     assert fracvi.integrate(PROBLEM, raise_on_failure=True).ok
@@ -235,3 +255,18 @@ def test_schemes_and_schema_keywords(cli, write_file, tmp_path):
         fracvi.integrate(path, schem="fvi-bdf2")
     with pytest.raises(fracvi.ProblemError, match="fvi-gl, fvi-bdf2"):
         fracvi.integrate(path, scheme="fvi-bdf3")
+
+
+def test_memory_is_estimated_before_allocating():
+    # The stored trajectory ((N + 1) rows of 16 d + 40 bytes) is refused with the number, as on
+    # the command line, instead of a MemoryError (or the OOM killer) after the set-up.
+    memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    if (2_000_000_000 + 1) * (16 * 2 + 40) <= memory:
+        pytest.skip("this machine could hold 2e9 stored states of d = 2")
+    with pytest.raises(fracvi.ProblemError) as e:
+        fracvi.integrate(fracvi.Problem.from_toml(PROBLEM).with_overrides("time.steps=2000000000"))
+    message = str(e.value)
+    assert "time.steps = 2000000000 with output.every = 1: the stored trajectory" in message
+    assert "more than this machine's memory" in message and "[output] every = n" in message
+    with pytest.raises(fracvi.ProblemError, match="model.dim = 1000000000000: the first and last"):
+        fracvi.Problem.from_toml(PROBLEM).with_overrides("model.dim=1000000000000")

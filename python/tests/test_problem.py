@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import fracvi
-from conftest import PROBLEM
+from conftest import FRACTIONAL, PROBLEM
 
 CLI_PREFIX = "fracvi run: "
 
@@ -221,6 +221,28 @@ def test_keyword_errors_name_the_key():
         fracvi.Problem.from_dict({"model": {1: 2}})
     with pytest.raises(ValueError, match="must be an object"):
         fracvi.Problem.from_dict([1, 2])
+
+
+def test_integers_are_read_exactly_or_refused(cli, write_file):
+    # Python ints become 64-bit integers of the problem (not floats): those a double holds exactly
+    # are converted exactly (mass=2**60 used to be read as garbage), the others are refused with
+    # the rule, exactly as the command line refuses them in a file.
+    good = dict(name="k", dim=1, potential="x1^2/2", position=[1.0], end=1.0, steps=10, alpha=0.5)
+    assert fracvi.Problem(mass=2**60, **good).mass == 2.0**60
+    assert fracvi.Problem(mass=2**60, damping=10**17, **good).damping == 1e17
+    for key, value in (("mass", 2**53 + 1), ("damping", -(2**53 + 1))):
+        kwargs = dict(good, mass=1.0)
+        kwargs[key] = value
+        with pytest.raises(ValueError) as e:
+            fracvi.Problem(**kwargs)
+        message = str(e.value)
+        assert message.startswith(f"<keywords>: model.{key} = {value}: integers beyond 2^53 are "
+                                  "not exactly representable as a double; write it as a float"), \
+            message
+        path = write_file(FRACTIONAL.replace("mass = 1.0", f"mass = {value}") if key == "mass"
+                          else FRACTIONAL.replace("damping = 0.3", f"damping = {value}"))
+        from_file = cli_message(cli, path)
+        assert from_file.split(": ", 1)[1] == message.split(": ", 1)[1], from_file
 
 
 def test_unknown_keyword_same_message_as_cli(cli, write_file):

@@ -1,9 +1,13 @@
 #include <array>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <string>
 
+#include <unistd.h>
+
 #include "fracvi/core/error.hpp"
+#include "fracvi/core/memory.hpp"
 #include "fracvi/core/newton_options.hpp"
 #include "fracvi/core/status.hpp"
 
@@ -16,8 +20,37 @@ std::string_view to_string(Status status) {
     case Status::kNewtonFailure: return "newton-failure";
     case Status::kNonFinite: return "non-finite";
     case Status::kCallbackError: return "callback-error";
+    case Status::kUnstable: return "unstable";
+    case Status::kInaccurate: return "inaccurate";
   }
   return "unknown";
+}
+
+std::size_t physical_memory_bytes() {
+  const long pages = sysconf(_SC_PHYS_PAGES);
+  const long page_size = sysconf(_SC_PAGE_SIZE);
+  if (pages <= 0 || page_size <= 0) return 0;
+  return static_cast<std::size_t>(pages) * static_cast<std::size_t>(page_size);
+}
+
+std::string format_bytes(double bytes) {
+  static constexpr const char* kUnits[] = {"bytes", "kB", "MB", "GB", "TB", "PB", "EB"};
+  std::size_t unit = 0;
+  while (bytes >= 1000.0 && unit + 1 < std::size(kUnits)) {
+    bytes /= 1000.0;
+    ++unit;
+  }
+  std::array<char, 64> buf{};
+  std::snprintf(buf.data(), buf.size(), unit == 0 ? "%.0f %s" : "%.3g %s", bytes, kUnits[unit]);
+  return buf.data();
+}
+
+void check_fits_in_memory(double bytes, const std::string& what, const std::string& advice) {
+  const std::size_t total = physical_memory_bytes();
+  if (total == 0 || !(bytes > static_cast<double>(total))) return;
+  throw ValidationError(what + " needs " + format_bytes(bytes) +
+                        ", more than this machine's memory (" +
+                        format_bytes(static_cast<double>(total)) + ")" + advice);
 }
 
 std::string format_number(double value) {

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "fracvi/core/error.hpp"
+#include "fracvi/core/memory.hpp"
 
 namespace fracvi {
 
@@ -51,6 +52,7 @@ InitialValueProblem validated(InitialValueProblem problem, const Method& method,
                               const IntegratorOptions& options) {
   validate(problem);
   validate(options);
+  check_storage(problem, options);
   check_applicable(problem, method, options);
   return problem;
 }
@@ -61,6 +63,32 @@ std::size_t stored_rows(std::size_t n_steps, std::size_t every) {
 }
 
 }  // namespace
+
+void check_storage(const InitialValueProblem& problem, const IntegratorOptions& options) {
+  if (options.save_every < 1) return;  // validate(options) names it
+  // Per stored row (Solution): t, the step index, energy, dissipated, balance, and x, v.
+  const double d = static_cast<double>(problem.model.dimension());
+  const double row_bytes = 40.0 + 16.0 * d;
+  const double rows = static_cast<double>(stored_rows(problem.steps, options.save_every));
+  std::string advice;
+  if (const std::size_t memory = physical_memory_bytes(); memory != 0) {
+    // The smallest stride whose rows (about N/every + 2) take at most half of the memory.
+    const double budget = 0.5 * static_cast<double>(memory) / row_bytes - 2.0;
+    if (budget >= 1.0) {
+      advice = "; store fewer states with [output] every = n (n >= " +
+               format_number(std::ceil(static_cast<double>(problem.steps) / budget)) +
+               " keeps it within half of the memory) or take fewer steps";
+    } else {
+      advice = "; even two stored states do not fit: reduce model.dim";
+    }
+  }
+  check_fits_in_memory(rows * row_bytes,
+                       "time.steps = " + std::to_string(problem.steps) +
+                           " with output.every = " + std::to_string(options.save_every) +
+                           ": the stored trajectory (" + format_number(rows) + " states of " +
+                           format_number(d) + " positions and velocities)",
+                       advice);
+}
 
 struct Integrator::Impl {
   InitialValueProblem problem;  // the stepper refers to it: Impl never moves (held by pointer)
@@ -77,6 +105,27 @@ struct Integrator::Impl {
   Status status = Status::kRunning;
   double e0 = 0.0;
   double energy_k = 0.0, work_k = 0.0, balance_k = 0.0;  // at step k
+  double kinetic_k = 0.0, potential_k = 0.0;             // K_k, U_k (energy_k = K_k + U_k)
+
+  // Health checks (integrator.hpp): the quantities of the three rules.
+  double span;                    // T = t_end − t_0
+  Eigen::VectorXd m_times_x;      // workspace (set-up only)
+  Eigen::VectorXd mass_weights;   // √M_ii: ‖x‖_M = ‖√diag(M) x‖ (integrator.hpp)
+  double state_base = 0.0;        // ‖x_0‖_M + T‖v_0‖_M
+  double energy_floor = 0.0;      // max(|E_0|, K_0 + |U_0|, S_R)
+  double max_supplied = 0.0;      // max_j |P_j|
+  double max_activity = 0.0;      // max_j (K_j + |U_j|)
+  double energy_scale = 0.0;      // S_k
+  double running_max = 0.0;       // max_{j≤k} ‖x_j‖_M
+  double checkpoint_max = 0.0;    // max_{j≤J'} ‖x_j‖_M at the last power of two J'
+  double growth_reference = 0.0;  // max_{j≤J} ‖x_j‖_M, J the power of two before J'
+  std::size_t next_checkpoint = 1;
+  bool supplied_known = false;      // P_k is available (tracked, or 0 by construction)
+  bool memory_is_a_source = false;  // RL memory of x(0): rule 1 off (init_health)
+  double max_abs_work = 0.0;        // max_j |W_j| (in S_k when P_j is not known)
+  double tolerance_scale = 0.0;     // S̃_k
+  double max_abs_balance = 0.0;     // max_j |E_j + W_j − E_0| and its step (rule 3)
+  std::size_t max_balance_step = 0;
 
   std::array<char, 480> message{};
   std::chrono::steady_clock::time_point clock_start;
@@ -90,7 +139,10 @@ struct Integrator::Impl {
         d(problem.model.dimension()),
         n_steps(problem.steps),
         h(problem.step_size()),
-        stepper(method.info().make_stepper(problem, options)) {
+        stepper(method.info().make_stepper(problem, options)),
+        span(problem.t_end - problem.t0),
+        m_times_x(d),
+        mass_weights(d) {
     const auto rows = static_cast<Eigen::Index>(stored_rows(n_steps, options.save_every));
     sol.t = Eigen::VectorXd::Constant(rows, kNaN);
     sol.step.assign(static_cast<std::size_t>(rows), 0);
@@ -113,15 +165,132 @@ struct Integrator::Impl {
       energy_k = work_k = balance_k = kNaN;
       sol.max_balance_error = kNaN;
     }
+    init_health();
     store();
   }
 
-  // E_k = ½ v_kᵀ p_k + U(x_k, t_k) from the stepper's state.
-  [[nodiscard]] double energy(std::size_t i) const {
-    const double kinetic = 0.5 * stepper->velocity().dot(stepper->momentum());
-    return problem.model.potential
-               ? kinetic + problem.model.potential->value(stepper->position(), time(i))
-               : kinetic + 0.0;
+  // E_k = ½ v_kᵀ p_k + U(x_k, t_k) from the stepper's state; sets kinetic_k and potential_k.
+  [[nodiscard]] double energy(std::size_t i) {
+    kinetic_k = 0.5 * stepper->velocity().dot(stepper->momentum());
+    potential_k = problem.model.potential
+                      ? problem.model.potential->value(stepper->position(), time(i))
+                      : 0.0;
+    return kinetic_k + potential_k;
+  }
+
+  // ‖x‖_M = √(xᵀMx), the state norm of the growth rule (units √mass · length, like T√(2S)).
+  // The state norm of the growth rule, weighted by the diagonal of M (units √mass · length, like
+  // T√(2S)): O(d) per step, where the full xᵀMx would cost a dense matrix-vector product (as much
+  // as the step itself for a dense M). Exact for a diagonal M; within the conditioning of M
+  // otherwise, which the factor 10^8 of the rule absorbs.
+  [[nodiscard]] double mass_norm(const Eigen::VectorXd& x) const {
+    return (mass_weights.array() * x.array()).matrix().norm();
+  }
+
+  void init_health() {
+    for (Eigen::Index i = 0; i < d; ++i) {
+      mass_weights[i] = std::sqrt(std::max(0.0, problem.model.mass.coeff(i, i)));
+    }
+    const double x0 = mass_norm(problem.x0);
+    state_base = x0 + span * mass_norm(problem.v0);
+    running_max = checkpoint_max = x0;
+    // S_R: the energy the damping memory of the initial state can hand back (integrator.hpp).
+    double memory_energy = 0.0;
+    if (!problem.model.is_undamped()) {
+      problem.model.damping.multiply(problem.x0, m_times_x);
+      double q = problem.x0.dot(m_times_x);
+      problem.model.damping.multiply(problem.v0, m_times_x);
+      q += span * span * problem.v0.dot(m_times_x);
+      memory_energy = std::abs(q) * std::pow(span, -2.0 * problem.model.alpha);
+    }
+    energy_floor = memory_energy;
+    const bool time_dependent_u =
+        problem.model.potential && problem.model.potential->is_time_dependent();
+    supplied_known =
+        std::isfinite(stepper->supplied_work()) || (!problem.model.forcing && !time_dependent_u);
+    // Riemann–Liouville with x(0) ≠ 0 and 0 < 2α < 1: the memory of the constant x(0) is a force
+    // R x(0) t^{−2α}/Γ(1−2α) that acts like an external one and legitimately puts energy in (its
+    // integrable singularity at t = 0 delivers a kick of order R x(0) h^{1−2α}), so the damping's
+    // work is no evidence of instability there and rule 1 is off.
+    const double beta = 2.0 * problem.model.alpha;
+    memory_is_a_source = problem.model.convention == Convention::kRiemannLiouville && beta > 0.0 &&
+                         beta < 1.0 && !problem.x0.isZero(0.0) && !problem.model.is_undamped();
+    if (options.diagnostics) {
+      energy_floor = std::max({energy_floor, std::abs(e0), kinetic_k + std::abs(potential_k)});
+      max_activity = kinetic_k + std::abs(potential_k);
+    }
+    energy_scale = energy_floor;
+  }
+
+  // The rules 1 and 2 of integrator.hpp at step k (diagnostics already computed), and the
+  // running quantities of rule 3 (applied by balance_rule_tripped()). Returns kUnstable (message
+  // written) or kSuccess.
+  Status check_health() noexcept {
+    if (options.diagnostics) {
+      max_activity = std::max(max_activity, kinetic_k + std::abs(potential_k));
+      double damping_work = kNaN;
+      if (supplied_known && !memory_is_a_source) {
+        const double supplied =
+            std::isfinite(stepper->supplied_work()) ? stepper->supplied_work() : 0.0;
+        max_supplied = std::max(max_supplied, std::abs(supplied));
+        damping_work = work_k + supplied;
+      }
+      max_abs_work = std::max(max_abs_work, std::abs(work_k));
+      // Without P_k (rule 1 off) the work W_k, which contains it, stands in for it.
+      const double unknown_supply = std::isfinite(damping_work) ? 0.0 : max_abs_work;
+      // Not the damping's own work: a scheme past its bound can book a growing positive one
+      // (measured for fvi-lobatto2/3/4 forced 3 % past it) and would hide its own blow-up.
+      energy_scale = std::max({energy_floor, max_supplied, unknown_supply});
+      tolerance_scale = std::max(energy_scale, kActivityFraction * max_activity);
+      if (std::abs(balance_k) > max_abs_balance) {
+        max_abs_balance = std::abs(balance_k);
+        max_balance_step = k;
+      }
+      // Rule 1: the damping put energy in.
+      if (damping_work < -kUnstableDampingFactor * tolerance_scale) {
+        std::snprintf(message.data(), message.size(),
+                      "unstable at step %zu (t = %.17g): the damping put energy in: its work "
+                      "W_k + (work of f) = %.6g is below -%g x the energy scale %.6g (an explicit "
+                      "damping memory past its stability bound, or a step too large)",
+                      k, time(k), damping_work, kUnstableDampingFactor, tolerance_scale);
+        return Status::kUnstable;
+      }
+    }
+    // Rule 2: the state grew by orders of magnitude.
+    const double x_norm = mass_norm(stepper->position());
+    double base = std::max(state_base, growth_reference);
+    if (options.diagnostics) base = std::max(base, span * std::sqrt(2.0 * energy_scale));
+    if (base > 0.0 && x_norm > kUnstableGrowthFactor * base) {
+      std::snprintf(message.data(), message.size(),
+                    "unstable at step %zu (t = %.17g): the state grew by orders of magnitude: "
+                    "|x_k|_M = %.6g exceeds %g x its scale %.6g (the largest of |x_0|_M + "
+                    "T|v_0|_M, T sqrt(2 x energy scale) and |x_j|_M earlier in the run)",
+                    k, time(k), x_norm, kUnstableGrowthFactor, base);
+      return Status::kUnstable;
+    }
+    running_max = std::max(running_max, x_norm);
+    if (k == next_checkpoint) {
+      growth_reference = checkpoint_max;
+      checkpoint_max = running_max;
+      next_checkpoint *= 2;
+    }
+    return Status::kSuccess;
+  }
+
+  // Rule 3, over the run so far: max_j |E_j + W_j − E_0| > kInaccurateBalanceFraction · S̃_k. The
+  // scale of the whole run, not of step j: a run starting from rest has tiny energies in its
+  // first steps, where the balance error of an O(h^p) scheme is relatively large but absolutely
+  // negligible (measured 1.7e-11 against an energy of 1.7e-11 at step 1 of a power-law problem).
+  [[nodiscard]] bool balance_rule_tripped() const {
+    return options.diagnostics && max_abs_balance > kInaccurateBalanceFraction * tolerance_scale;
+  }
+  void write_inaccurate_message() noexcept {
+    std::snprintf(message.data(), message.size(),
+                  "inaccurate: the energy balance error |E_k + W_k - E_0| reached %.6g at step %zu "
+                  "(t = %.17g), more than %g x the energy scale %.6g of the run (the steps do not "
+                  "resolve the motion: take more steps)",
+                  max_abs_balance, max_balance_step, time(max_balance_step),
+                  kInaccurateBalanceFraction, tolerance_scale);
   }
 
   Eigen::Map<Eigen::VectorXd> row(RowMatrixXd& m, std::size_t i) {
@@ -210,9 +379,16 @@ struct Integrator::Impl {
       sol.max_balance_error = std::max(sol.max_balance_error, std::abs(balance_k));
     }
     sol.steps_done = k;
+    if (check_health() == Status::kUnstable) {
+      status = Status::kUnstable;
+      stop_clock();
+      store();  // the step that tripped the rule is the last row
+      return status;
+    }
     if (k % options.save_every == 0 || k == n_steps) store();
     if (k == n_steps) {
-      status = Status::kSuccess;
+      status = balance_rule_tripped() ? Status::kInaccurate : Status::kSuccess;
+      if (status == Status::kInaccurate) write_inaccurate_message();
       stop_clock();
     }
     return status;
@@ -294,9 +470,23 @@ Solution Integrator::take_solution() {
   s.message = im.status == Status::kSuccess || im.status == Status::kRunning
                   ? std::string()
                   : std::string(im.message.data());
+  // A run that failed or was stopped while rule 3 held says so too: a failure may be its
+  // consequence.
+  const bool unresolved = im.balance_rule_tripped() && im.status != Status::kInaccurate;
+  if (unresolved && im.status != Status::kRunning) {
+    s.message += " (before that, the energy balance error had reached " +
+                 format_number(im.max_abs_balance) + " at step " +
+                 std::to_string(im.max_balance_step) + ", more than " +
+                 format_number(kInaccurateBalanceFraction) + " x the energy scale " +
+                 format_number(im.tolerance_scale) + ")";
+  }
+  if (im.status == Status::kRunning && unresolved) {
+    im.write_inaccurate_message();
+    s.message = std::string(im.message.data()) + "; ";
+  }
   if (im.status == Status::kRunning) {
-    s.message = "stopped by the caller after " + std::to_string(im.k) + " of " +
-                std::to_string(im.n_steps) + " steps";
+    s.message += "stopped by the caller after " + std::to_string(im.k) + " of " +
+                 std::to_string(im.n_steps) + " steps";
   }
   const auto rows = static_cast<Eigen::Index>(im.saved);
   s.step.resize(im.saved);

@@ -301,7 +301,7 @@ nlohmann::json make_bvp_summary(const ProblemSpec& spec, const BvpSolution& s) {
 
 void write_bvp_output(const std::filesystem::path& dir, const ProblemSpec& spec,
                       const BvpSolution& s) {
-  std::filesystem::create_directories(dir);
+  prepare_output_directory(dir);
   const Eigen::Index d = s.x.cols(), rows = s.x.rows();
   std::string csv = "t";
   for (Eigen::Index i = 1; i <= d; ++i) csv += ",x" + std::to_string(i);

@@ -1,10 +1,14 @@
 #include "fracvi/io/output.hpp"
 
+#include <cerrno>
 #include <charconv>
+#include <cstring>
 #include <fstream>
 #include <memory>
 #include <stdexcept>
 #include <string>
+
+#include <unistd.h>
 
 #include "fracvi/analysis/convergence.hpp"
 #include "fracvi/integrate/integrator.hpp"
@@ -69,15 +73,62 @@ void append_csv_number(std::string& out, double v) {
   out.append(buf, r.ptr);
 }
 
-void write_file_atomically(const std::filesystem::path& file, const std::string& content) {
+void write_file_atomically(const std::filesystem::path& file,
+                           const std::function<void(std::ostream&)>& write) {
   const auto tmp = std::filesystem::path(file.string() + ".tmp");
+  // Nothing is left behind on failure: the temporary is removed before the error propagates.
+  const auto fail = [&tmp](const std::string& what) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw OutputError(what);
+  };
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error("cannot write " + tmp.string());
-    out << content;
-    if (!out.flush()) throw std::runtime_error("error while writing " + tmp.string());
+    if (!out) fail("cannot write " + tmp.string() + ": " + std::strerror(errno));
+    try {
+      write(out);
+    } catch (...) {
+      out.close();
+      std::error_code ignored;
+      std::filesystem::remove(tmp, ignored);
+      throw;
+    }
+    if (!out.flush()) fail("error while writing " + tmp.string() + ": " + std::strerror(errno));
+    out.close();
+    if (out.fail()) fail("error while closing " + tmp.string() + ": " + std::strerror(errno));
   }
-  std::filesystem::rename(tmp, file);
+  std::error_code ec;
+  std::filesystem::rename(tmp, file, ec);
+  if (ec) fail("cannot rename " + tmp.string() + " to " + file.string() + ": " + ec.message());
+}
+
+void write_file_atomically(const std::filesystem::path& file, const std::string& content) {
+  write_file_atomically(file, [&content](std::ostream& out) { out << content; });
+}
+
+void prepare_output_directory(const std::filesystem::path& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status status = fs::status(dir, ec);
+  if (fs::exists(status) && !fs::is_directory(status)) {
+    throw OutputError(dir.string() + ": exists and is not a directory");
+  }
+  fs::create_directories(dir, ec);
+  if (ec) throw OutputError(dir.string() + ": cannot create the directory: " + ec.message());
+  // Writable? Create, write and remove a probe file (a unique name: runs may share the directory).
+  const fs::path probe = dir / (".fracvi-write-test-" + std::to_string(::getpid()));
+  bool written = false;
+  int error = 0;
+  {
+    std::ofstream out(probe, std::ios::binary | std::ios::trunc);
+    written = out && (out << "fracvi\n") && out.flush();
+    if (!written) error = errno;
+  }
+  fs::remove(probe, ec);
+  if (!written) {
+    throw OutputError(dir.string() + ": cannot write into the directory: " +
+                      std::strerror(error != 0 ? error : EIO));
+  }
 }
 
 nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
@@ -110,26 +161,29 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
 
 void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
                       const Solution& s) {
-  std::filesystem::create_directories(dir);
+  prepare_output_directory(dir);
   const Eigen::Index d = s.x.cols();
-  std::string csv = "t";
-  for (Eigen::Index i = 1; i <= d; ++i) csv += ",x" + std::to_string(i);
-  for (Eigen::Index i = 1; i <= d; ++i) csv += ",v" + std::to_string(i);
-  csv += ",energy,dissipated,balance\n";
-  // Every stored row: the integrator already kept only every save_every-th state.
-  const Eigen::Index rows = s.t.size();
-  csv.reserve(csv.size() +
-              static_cast<std::size_t>(rows) * static_cast<std::size_t>(2 * d + 4) * 24);
-  for (Eigen::Index k = 0; k < rows; ++k) {
-    append_csv_number(csv, s.t[k]);
-    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_csv_number(csv, s.x(k, i));
-    for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_csv_number(csv, s.v(k, i));
-    csv += ',', append_csv_number(csv, s.energy[k]);
-    csv += ',', append_csv_number(csv, s.dissipated[k]);
-    csv += ',', append_csv_number(csv, s.balance[k]);
-    csv += '\n';
-  }
-  write_file_atomically(dir / "trajectory.csv", csv);
+  // Streamed row by row through one reused buffer: the CSV text is about three times the size of
+  // the stored trajectory and is never held in memory as a whole.
+  write_file_atomically(dir / "trajectory.csv", [&s, d](std::ostream& out) {
+    std::string line = "t";
+    for (Eigen::Index i = 1; i <= d; ++i) line += ",x" + std::to_string(i);
+    for (Eigen::Index i = 1; i <= d; ++i) line += ",v" + std::to_string(i);
+    line += ",energy,dissipated,balance\n";
+    out << line;
+    // Every stored row: the integrator already kept only every save_every-th state.
+    for (Eigen::Index k = 0; k < s.t.size(); ++k) {
+      line.clear();
+      append_csv_number(line, s.t[k]);
+      for (Eigen::Index i = 0; i < d; ++i) line += ',', append_csv_number(line, s.x(k, i));
+      for (Eigen::Index i = 0; i < d; ++i) line += ',', append_csv_number(line, s.v(k, i));
+      line += ',', append_csv_number(line, s.energy[k]);
+      line += ',', append_csv_number(line, s.dissipated[k]);
+      line += ',', append_csv_number(line, s.balance[k]);
+      line += '\n';
+      out << line;
+    }
+  });
   write_file_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
   write_file_atomically(dir / "problem.toml", to_toml(spec));
 }

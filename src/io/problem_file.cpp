@@ -9,11 +9,13 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <map>
 #include <optional>
 #include <sstream>
 
+#include "fracvi/core/memory.hpp"
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/lagrangian/lagrangian.hpp"
 #include "fracvi/model/expression_potential.hpp"
@@ -23,6 +25,10 @@
 namespace fracvi {
 
 namespace {
+
+// The largest time.steps: the step index and every count stay far inside 64 bits, and a trajectory
+// of more steps would not be stored anyway (the memory check of the Integrator).
+constexpr long long kMaxSteps = 2'000'000'000LL;
 
 // The schema: section → allowed keys, from the one table of io/problem_schema.hpp. "" is the top
 // level; "model.chain" is a table in [model].
@@ -122,8 +128,29 @@ class Reader {
 
   double number(const toml::node& n, const std::string& key) const {
     if (!n.is_number()) fail(key, value_text(n) + "must be a number, got " + type_name(n));
-    const double v = *n.value<double>();
+    if (const auto* i = n.as_integer()) return exact_double(i->get(), key);
+    const double v = n.as_floating_point()->get();
     if (!std::isfinite(v)) fail(key, "= " + format_value(v) + " must be finite");
+    return v;
+  }
+  // An integer where a number is expected, converted only when the double holds it exactly:
+  // toml++'s value<double>() is empty beyond ±2^53 (and reading it anyway gave R = 6.95e-310 for
+  // damping = 1e17 written as an integer), and silently rounding would make the file say
+  // something the run does not do. 10^17 is exact (= 2^17·5^17); 2^53 + 1 is not.
+  double exact_double(std::int64_t value, const std::string& key) const {
+    const double v = static_cast<double>(value);
+    // v is within [−2^63, 2^63]; 2^63 itself is not an int64, so compare before converting back.
+    const bool exact = v < 0x1p63 && static_cast<std::int64_t>(v) == value;
+    if (!exact) {
+      const std::string digits = std::to_string(value);
+      const std::size_t sign = value < 0 ? 1 : 0;
+      const std::string as_float = digits.substr(0, sign + 1) + "." + digits.substr(sign + 1) +
+                                   "e" + std::to_string(digits.size() - sign - 1);
+      fail(key, "= " + digits +
+                    ": integers beyond 2^53 are not exactly representable as a double; write it "
+                    "as a float, e.g. " +
+                    as_float + " (rounded to the nearest double, " + format_value(v) + ")");
+    }
     return v;
   }
   long long integer(const toml::node& n, const std::string& key) const {
@@ -370,6 +397,16 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   // [model]
   const long long dim = r.integer(r.required("model", "dim", "the dimension d"), "model.dim");
   if (dim < 1) r.fail("model.dim", "= " + std::to_string(dim) + " must be at least 1");
+  // Every run stores at least two states (x and v, 16 bytes per coordinate each), besides the
+  // vectors of the problem: refuse a dimension that cannot fit before allocating any of them.
+  const double state_bytes = 32.0 * static_cast<double>(dim);
+  if (const std::size_t memory = physical_memory_bytes();
+      memory != 0 && state_bytes > static_cast<double>(memory)) {
+    r.fail("model.dim", "= " + std::to_string(dim) +
+                            ": the first and last state alone (x and v) need " +
+                            format_bytes(state_bytes) + ", more than this machine's memory (" +
+                            format_bytes(static_cast<double>(memory)) + ")");
+  }
   p.dim = static_cast<Eigen::Index>(dim);
   // A general Lagrangian replaces the mechanical fields (mass, damping, potential, force).
   const auto* lagrangian = r.find("model", "lagrangian");
@@ -514,6 +551,13 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     const double h = r.number(*step, "time.step");
     if (!(h > 0.0)) r.fail("time.step", "= " + format_value(h) + " must be positive");
     const double n = (p.end - p.start) / h;
+    // Before the conversion to an integer: a tiny step (1e-300) gives a count beyond long long,
+    // whose conversion is undefined behaviour.
+    if (!(n <= static_cast<double>(kMaxSteps))) {
+      r.fail("time.step", "= " + format_value(h) + " divides [" + format_value(p.start) + ", " +
+                              format_value(p.end) + "] into " + format_value(n, 3) +
+                              " steps, more than the limit of " + std::to_string(kMaxSteps));
+    }
     const double rounded = std::round(n);
     if (rounded < 1.0 || std::abs(n - rounded) > 1e-9 * rounded) {
       r.fail("time.step", "= " + format_value(h) + " does not divide [" + format_value(p.start) +
@@ -521,8 +565,10 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     }
     p.steps = static_cast<long long>(rounded);
   }
-  if (p.steps > 2'000'000'000LL)
-    r.fail("time.steps", "= " + std::to_string(p.steps) + " is too large");
+  if (p.steps > kMaxSteps) {
+    r.fail("time.steps", "= " + std::to_string(p.steps) + " is more than the limit of " +
+                             std::to_string(kMaxSteps));
+  }
 
   // [method]
   if (const auto* n = r.find("method", "scheme")) {
@@ -632,6 +678,18 @@ namespace {
 toml::array to_toml_array(const nlohmann::json& a, const std::string& source,
                           const std::string& key);
 
+// A JSON integer as TOML's 64-bit signed integer: nlohmann keeps integers above INT64_MAX as
+// unsigned, and get<int64_t>() would wrap them to negative numbers (18446744073709551615 → −1).
+std::int64_t json_integer(const nlohmann::json& v, const std::string& source,
+                          const std::string& key) {
+  if (v.is_number_unsigned() && v.get<std::uint64_t>() > static_cast<std::uint64_t>(INT64_MAX)) {
+    throw ProblemFileError(source + ": " + key + " = " + std::to_string(v.get<std::uint64_t>()) +
+                           " does not fit a 64-bit integer; write it as a float, e.g. " +
+                           format_value(v.get<double>()));
+  }
+  return v.get<std::int64_t>();
+}
+
 // JSON → TOML, so that one reader validates both.
 toml::table to_toml_table(const nlohmann::json& object, const std::string& source,
                           const std::string& prefix) {
@@ -647,7 +705,7 @@ toml::table to_toml_table(const nlohmann::json& object, const std::string& sourc
     } else if (v.is_boolean()) {
       t.insert(k, v.get<bool>());
     } else if (v.is_number_integer()) {
-      t.insert(k, v.get<int64_t>());
+      t.insert(k, json_integer(v, source, key));
     } else if (v.is_number()) {
       t.insert(k, v.get<double>());
     } else {
@@ -666,7 +724,7 @@ toml::array to_toml_array(const nlohmann::json& a, const std::string& source,
     } else if (v.is_string()) {
       out.push_back(v.get<std::string>());
     } else if (v.is_number_integer()) {
-      out.push_back(v.get<int64_t>());
+      out.push_back(json_integer(v, source, key));
     } else if (v.is_number()) {
       out.push_back(v.get<double>());
     } else if (v.is_boolean()) {

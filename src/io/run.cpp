@@ -33,6 +33,7 @@ PreparedRun prepare_run(ProblemSpec spec) {
     validate(run.problem);
     validate(run.options);
     check_applicable(run.problem, run.method, run.options);
+    check_storage(run.problem, run.options);
     run.spec = std::move(spec);
     return run;
   } catch (const ProblemFileError&) {

@@ -51,6 +51,7 @@ class CqMidpointStepper final : public Stepper {
   [[nodiscard]] const Eigen::VectorXd& velocity() const override { return v_cur_; }
   [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
   [[nodiscard]] double work() const override { return work_; }
+  [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] double mirror_error(const RowMatrixXd& x,
                                     std::span<const std::size_t> steps) const override;
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
@@ -103,7 +104,7 @@ class CqMidpointStepper final : public Stepper {
   Eigen::VectorXd x_cur_, x_next_, v_cur_, v_next_, x_first_;
   Eigen::VectorXd p_, p_plus_, p_minus_, force_, force_next_, w_, w_next_, sum_, x_tilde_, f_mid_,
       rhs_, mid_, grad_, dx_;
-  double fv_ = 0.0, fw_ = 0.0, work_ = 0.0;
+  double fv_ = 0.0, fw_ = 0.0, work_ = 0.0, supplied_ = 0.0;
 };
 
 }  // namespace fracvi::internal

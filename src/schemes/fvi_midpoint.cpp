@@ -113,13 +113,14 @@ class TrapezoidalMidpointStepper final : public Stepper {
     v_cur_ = problem.v0;
     mass_.multiply(problem.v0, p_);
     q_ = p_;
-    work_ = diagnostics_ ? 0.0 : kNaN;
+    work_ = supplied_ = diagnostics_ ? 0.0 : kNaN;
   }
 
   [[nodiscard]] const Eigen::VectorXd& position() const override { return x_cur_; }
   [[nodiscard]] const Eigen::VectorXd& velocity() const override { return v_cur_; }
   [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
   [[nodiscard]] double work() const override { return work_; }
+  [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
   [[nodiscard]] std::size_t history_bytes() const override {
     return (difference_history_ ? difference_history_->memory_bytes() : 0) +
@@ -215,7 +216,7 @@ class TrapezoidalMidpointStepper final : public Stepper {
   Eigen::VectorXd x_cur_, x_next_, v_cur_, p_, p_next_, q_, g_tilde_, g_total_, g_hat_, g_poly_,
       g_poly_prev_, sum_, y_, part_, mid_tilde_, rhs_, mid_, dx_, tmp_, r_x0_, r_v0_, x_first_,
       f_mid_;
-  double work_ = 0.0;
+  double work_ = 0.0, supplied_ = 0.0;
 };
 
 Status TrapezoidalMidpointStepper::advance() {
@@ -288,11 +289,18 @@ Status TrapezoidalMidpointStepper::advance() {
     // E_{k+1} − E_k = −(G_k − f)·Δ_k for quadratic U (the midpoint rule: ∇U(x̄)·Δ = ΔU), plus
     // the explicit time dependence of U.
     if (damped_) work_ += g_total_.dot(dx_);
-    if (has_forcing_) work_ -= f_mid_.dot(dx_);
+    // Subtracted term by term as before (bit-for-bit the same W_k), and summed for supplied_.
+    if (has_forcing_) {
+      const double fw = f_mid_.dot(dx_);
+      work_ -= fw;
+      supplied_ += fw;
+    }
     if (u_time_dependent_) {
       mid_ = xk + 0.5 * dx_;
-      work_ -= potential_value(mid_, problem_.time(static_cast<double>(k + 1))) -
-               potential_value(mid_, problem_.time(static_cast<double>(k)));
+      const double du = potential_value(mid_, problem_.time(static_cast<double>(k + 1))) -
+                        potential_value(mid_, problem_.time(static_cast<double>(k)));
+      work_ -= du;
+      supplied_ += du;
     }
   }
   mass_solver_.inverse(p_, v_cur_);

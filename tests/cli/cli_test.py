@@ -14,6 +14,8 @@ import tempfile
 import unittest
 
 FRACVI = None
+# examples/ of the source tree (a problem file for the commands that need one).
+FRACVI_EXAMPLES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "examples")
 
 
 def run(*args):
@@ -212,6 +214,72 @@ class Run(unittest.TestCase):
         with open(os.path.join(out, "trajectory.csv"), encoding="utf-8") as f:
             self.assertEqual(len(f.readlines()), summary["steps"] + 2)
 
+    # The run's health checks (docs/conventions.md, "When a run is not a success"): U = -1/x1
+    # falls from rest at x = 1 into its singularity at t = 1.11 and the step jumps across it
+    # (balance error 170 against E_0 = -1); U = -x1^4 from x = 1, v = 1 blows up in finite time
+    # (t = 0.9) and 50 steps run through it (balance error 2e17). Both used to end "success".
+    # Each ends "inaccurate" with exit 1, the message naming the quantity, its value and the rule,
+    # and every row written; the same problems before the singularity are a success.
+    SINGULAR = [
+        ("coulomb", "-1/x1", "0.0", "5.0", 1000, "1.0"),
+        ("quartic", "-x1^4", "1.0", "3.0", 50, "0.3"),
+    ]
+
+    def test_blow_up_and_singularity_are_not_success(self):
+        for name, potential, velocity, end, steps, safe_end in self.SINGULAR:
+            with self.subTest(name):
+                path = self.write(f'name = "{name}"\n[model]\ndim = 1\nmass = 1.0\nalpha = 0.5\n'
+                                  f'potential = "{potential}"\n[initial]\nposition = [1.0]\n'
+                                  f'velocity = [{velocity}]\n[time]\nend = {end}\n'
+                                  f'steps = {steps}\n')
+                out = os.path.join(self.dir, name)
+                r = run("run", path, "--out", out, "--no-plot")
+                self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+                self.assertIn("status            inaccurate: ", r.stdout)
+                with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+                    summary = json.load(f)
+                self.assertEqual(summary["status"], "inaccurate")
+                for needle in ("energy balance error |E_k + W_k - E_0| reached ",
+                               "more than 0.5 x the energy scale", " at step "):
+                    self.assertIn(needle, summary["message"])
+                self.assertEqual(summary["steps"], steps)
+                self.assertGreater(summary["max_balance_error"], 1.0)
+                with open(os.path.join(out, "trajectory.csv"), encoding="utf-8") as f:
+                    self.assertEqual(len(f.readlines()), steps + 2)
+                # Negative control: the same problem stopped before the singularity.
+                r = run("run", path, "--out", out + "-safe", "--no-plot", "--quiet",
+                        "--set", f"time.end={safe_end}", "--set", "time.steps=3000")
+                self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+
+    def test_integers_are_read_exactly_or_refused(self):
+        # 10^17 and 2^60 are doubles: read exactly (10^17 used to run as R = 6.95e-310); 2^53 + 1
+        # is not: refused naming the key, the value and the rule (it used to pass the sign check).
+        out = os.path.join(self.dir, "exact")
+        r = run("run", "--out", out, "--no-plot", "--quiet", "--set", "time.steps=100",
+                "--set", "time.end=1", "--set", "model.damping=100000000000000000",
+                "--set", "model.mass=1152921504606846976")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+            model = json.load(f)["problem"]["model"]
+        self.assertEqual(model["damping"], 1e17)
+        self.assertEqual(model["mass"], 2.0**60)
+        for key, value in (("damping", "-9007199254740993"), ("mass", "9007199254740993")):
+            with self.subTest(key):
+                line = {"damping": "damping = [[0.2, 0.05], [0.05, 0.1]]",
+                        "mass": "mass = [[2.0, 0.5], [0.5, 1.0]]"}[key]
+                self.assertIn(line, PROBLEM)
+                path = self.write(PROBLEM.replace(line, f"{key} = {value}"))
+                never = os.path.join(self.dir, "never")
+                r = run("run", path, "--out", never)
+                self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+                self.assertEqual(r.stdout, "")
+                lines = r.stderr.strip().splitlines()
+                self.assertEqual(len(lines), 1, r.stderr)
+                self.assertIn(f"p.toml: model.{key} = {value}: integers beyond 2^53 are not "
+                              "exactly representable as a double; write it as a float, e.g. "
+                              f"{value[:-15]}.{value[-15:]}e15", lines[0])
+                self.assertFalse(os.path.exists(never))
+
     BAD = [
         ("unknown key", ("damping =", "dampng ="), ["model.dampng", "did you mean 'damping'"]),
         ("unknown section", ("[time]", "[timing]"), ["timing", "unknown"]),
@@ -381,6 +449,112 @@ class Methods(unittest.TestCase):
                            "time.steps >= 61"):
                 self.assertIn(needle, r.stderr)
             self.assertFalse(os.path.exists(out))
+
+
+class Robustness(unittest.TestCase):
+    """Inputs that used to abort (exit 134) or lose a finished run: each is now one line on stderr
+    with the README's exit status (2: the input, found before step 1, no output directory; 1: the
+    results could not be written), and no temporary file is left behind."""
+
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.dir = self.tmp.name
+
+    def tearDown(self):
+        for root, dirs, _ in os.walk(self.dir):
+            for d in dirs:
+                os.chmod(os.path.join(root, d), 0o755)
+        self.tmp.cleanup()
+
+    def refused(self, needles, *args, status=2):
+        r = run(*args)
+        self.assertEqual(r.returncode, status, r.stdout + r.stderr)
+        self.assertEqual(r.stdout, "")
+        lines = r.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, r.stderr)
+        for needle in needles:
+            self.assertIn(needle, lines[0])
+        return lines[0]
+
+    def test_output_directory_is_checked_before_step_one(self):
+        a_file = os.path.join(self.dir, "a-file")
+        with open(a_file, "w", encoding="utf-8") as f:
+            f.write("not a directory\n")
+        cases = [
+            ("a file", a_file, ["--out " + a_file, "exists and is not a directory"]),
+            ("under a file", os.path.join(a_file, "out"), ["cannot create", "Not a directory"]),
+            ("name too long", os.path.join(self.dir, "n" * 300), ["File name too long"]),
+            ("not creatable", "/proc/fracvi-cli-test/out", ["cannot create the directory"]),
+        ]
+        if os.geteuid() != 0:  # root writes into a read-only directory anyway
+            read_only = os.path.join(self.dir, "read-only")
+            os.mkdir(read_only, 0o555)
+            cases.append(("read-only", os.path.join(read_only, "out"), ["Permission denied"]))
+        for what, out, needles in cases:
+            with self.subTest(what):
+                # 10^6 steps would take seconds: the refusal comes before the integration.
+                self.refused(["fracvi run: "] + needles, "run", "--out", out, "--no-plot",
+                             "--set", "time.steps=1000000")
+                self.refused(["fracvi convergence: "] + needles, "convergence",
+                             os.path.join(FRACVI_EXAMPLES, "damped_pendulum.toml"), "--steps",
+                             "100,200", "--out", out, "--no-plot")
+
+    def test_too_small_a_step_and_too_many_steps(self):
+        path = os.path.join(self.dir, "p.toml")
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(PROBLEM.replace("steps = 500", "step = 1e-300"))
+        out = os.path.join(self.dir, "never")
+        # (end - start)/step = 5e300 used to overflow the conversion to an integer step count.
+        self.refused(["p.toml: time.step = 1e-300 divides [0, 5] into 5e+300 steps",
+                      "more than the limit of 2000000000"], "run", path, "--out", out)
+        self.refused(["time.steps = 2000000001 is more than the limit of 2000000000"],
+                     "run", "--out", out, "--set", "time.steps=2000000001")
+        self.assertFalse(os.path.exists(out))
+
+    def test_memory_is_estimated_before_allocating(self):
+        memory = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        out = os.path.join(self.dir, "never")
+        # The stored trajectory: (N + 1) rows of 16 d + 40 bytes. steps = 2e9 (d = 1) is 112 GB;
+        # it used to be accepted and then die in std::bad_alloc.
+        needed = (2_000_000_000 + 1) * (16 + 40)
+        if needed > memory:
+            self.refused(["time.steps = 2000000000 with output.every = 1: the stored "
+                          "trajectory", "needs 112 GB, more than this machine's memory",
+                          "store fewer states with [output] every = n (n >= "],
+                         "run", "--out", out, "--set", "time.steps=2000000000")
+        # model.dim = 10^12: 32 TB for two states, refused before any vector is allocated.
+        self.refused(["model.dim = 1000000000000: the first and last state alone (x and v) "
+                      "need 32 TB, more than this machine's memory"],
+                     "run", "--out", out, "--set", "model.dim=1000000000000")
+
+    def test_singular_function_in_derivative(self):
+        self.refused(["fracvi derivative: --f = \"1/t\": the quadrature of D^alpha f(0.5) failed",
+                      "singular"],
+                     "derivative", "--alpha", "0.5", "--f", "1/t", "--a", "0", "--b", "1",
+                     "--t", "0.5")
+
+    def test_write_failure_after_the_run_leaves_no_temporary(self):
+        import resource
+        import signal
+
+        def small_files():  # files beyond 4 kB cannot be written (EFBIG instead of SIGXFSZ)
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))
+
+        out = os.path.join(self.dir, "full")
+        r = subprocess.run([FRACVI, "run", "--out", out, "--no-plot", "--quiet"],
+                           capture_output=True, text=True, timeout=120, preexec_fn=small_files)
+        self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+        lines = r.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, r.stderr)
+        self.assertIn("fracvi run: the results could not be written to " + out, lines[0])
+        self.assertIn("trajectory.csv.tmp: File too large", lines[0])
+        self.assertEqual(os.listdir(out), [])  # no .tmp, no probe file
+        # Negative control: the same run without the limit writes everything.
+        r = run("run", "--out", out, "--no-plot", "--quiet")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(sorted(os.listdir(out)), ["problem.toml", "summary.json",
+                                                   "trajectory.csv"])
 
 
 class Help(unittest.TestCase):

@@ -90,6 +90,56 @@ TEST(ProblemFile, StepMustDivideTheInterval) {
   EXPECT_NE(error_of(with("steps = 20", "")).find("time.steps"), std::string::npos);
 }
 
+// Integers where a number is expected are read exactly: toml++'s value<double>() is empty beyond
+// ±2^53, and dereferencing it ran `damping = 100000000000000000` as R = 6.95e-310 and let
+// `damping = -9007199254740993` pass the sign check. Exactly representable integers (10^17 =
+// 2^17·5^17, 2^60) are converted; the others (2^53 + 1) are refused naming the key, the value and
+// the rule. The same through --set (and Python's keywords, python/tests/test_problem.py).
+TEST(ProblemFile, IntegersAreReadExactlyOrRefused) {
+  EXPECT_EQ(parse(with("damping = [0.1, 0.2]", "damping = 100000000000000000")).damping.coeff(0, 0),
+            1e17);
+  EXPECT_EQ(parse(with("mass = 1.0", "mass = 1152921504606846976")).mass.coeff(1, 1),
+            std::ldexp(1.0, 60));
+  EXPECT_EQ(parse(kBase, {"model.damping=100000000000000000"}).damping.coeff(1, 1), 1e17);
+  EXPECT_EQ(parse(kBase, {"time.end=9007199254740992"}).end, std::ldexp(1.0, 53));  // 2^53 exact
+  EXPECT_EQ(parse(kBase, {"time.start=-3", "time.end=7"}).start, -3.0);
+  // 2^53 + 1 and the largest int64 are not doubles.
+  const std::string negative =
+      error_of(with("damping = [0.1, 0.2]", "damping = -9007199254740993"));
+  EXPECT_NE(negative.find("p.toml: model.damping = -9007199254740993: integers beyond 2^53 are not "
+                          "exactly representable"),
+            std::string::npos)
+      << negative;
+  EXPECT_NE(negative.find("write it as a float, e.g. -9.007199254740993e15"), std::string::npos)
+      << negative;
+  const std::string entry =
+      error_of(with("damping = [0.1, 0.2]", "damping = [0.1, 9007199254740993]"));
+  EXPECT_NE(entry.find("model.damping[2] = 9007199254740993: integers beyond 2^53"),
+            std::string::npos)
+      << entry;
+  const std::string largest = error_of(kBase, {"time.end=9223372036854775807"});
+  EXPECT_NE(largest.find("time.end = 9223372036854775807: integers beyond 2^53"), std::string::npos)
+      << largest;
+  // JSON (the C++ API and Python dicts): integers above INT64_MAX are refused, not wrapped.
+  nlohmann::json j = to_json(parse(kBase));
+  j["model"]["damping"] = std::uint64_t{18446744073709551615ULL};
+  try {
+    parse_problem_json(j, "dict");
+    ADD_FAILURE() << "2^64 - 1 accepted";
+  } catch (const ProblemFileError& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "dict: model.damping = 18446744073709551615 does not fit a 64-bit integer"),
+              std::string::npos)
+        << e.what();
+  }
+  j["model"]["damping"] = std::uint64_t{100000000000000000ULL};  // unsigned but exact: 1e17
+  EXPECT_EQ(parse_problem_json(j, "dict").damping.coeff(0, 0), 1e17);
+  // The float form the message suggests is accepted (rounded to the nearest double).
+  EXPECT_EQ(
+      parse(with("damping = [0.1, 0.2]", "damping = 9.007199254740993e15")).damping.coeff(0, 0),
+      9007199254740992.0);
+}
+
 TEST(ProblemFile, OverridesApplyBeforeValidation) {
   const ProblemSpec p =
       parse(kBase, {"model.alpha=0.25", "model.convention=caputo", "model.potential=x1^4 + x2^2",

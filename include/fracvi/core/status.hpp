@@ -11,6 +11,13 @@ enum class Status {
   kNewtonFailure,  ///< Newton did not reach the tolerance within max_iterations
   kNonFinite,      ///< a NaN or infinity appeared (residual, iterate, state or diagnostics)
   kCallbackError,  ///< the potential or the forcing threw an exception (its what() is in message)
+  /// The run's own diagnostics found it blowing up: the damping put energy in, or the state grew
+  /// by orders of magnitude beyond its scale (integrator.hpp, "Health checks"). The run stops at
+  /// the first detection; the trajectory up to that step is kept.
+  kUnstable,
+  /// All steps done, but the energy balance error exceeded the documented fraction of the energy
+  /// scale at some step (integrator.hpp, "Health checks"): the numbers are not to be trusted.
+  kInaccurate,
 };
 
 std::string_view to_string(Status status);

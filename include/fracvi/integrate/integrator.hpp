@@ -9,6 +9,33 @@
 // The step loop does not allocate and does not throw: numerical failure ends the run with a
 // Status and a message, and everything computed so far is kept.
 //
+// Health checks (DESIGN §4.2: `success` means the run's own diagnostics found nothing wrong).
+// After every step k the Integrator applies three rules (docs/conventions.md, "When a run is not a
+// success"). With T = t_end − t_0, K_j = ½v_jᵀMv_j, U_j = U(x_j, t_j), ‖x‖_M = √(Σ M_ii x_i²):
+//   energy scale  S_k = max(|E_0|, K_0 + |U_0|, S_R, max_{j≤k} |P_j|), where P_j is
+//                 the work put in by f and by the explicit time dependence of U
+//                 (Stepper::supplied_work), D_j = W_j + P_j the work of the damping alone, and
+//                 S_R = (x_0ᵀRx_0 + T² v_0ᵀRv_0)·T^{−2α} the energy the damping memory of the
+//                 initial state can hand back (Riemann–Liouville's x(0), Caputo's v(0));
+//   tolerance     S̃_k = max(S_k, kActivityFraction · max_{j≤k}(K_j + |U_j|)), a floor for a
+//                 potential whose offset makes E_0 = K_0 = U_0 = 0.
+//   1. unstable (stop): D_k < −kUnstableDampingFactor · S̃_k — the damping, which can only remove
+//      energy, has put in ten times the energy scale (an explicit damping memory past its
+//      stability bound). Needs the diagnostics and P_k (known when the scheme tracks it, or 0
+//      when f = 0 and U does not depend on t); off for Riemann–Liouville with x(0) ≠ 0 and
+//      0 < 2α < 1, whose memory of x(0) is a force that legitimately puts energy in.
+//   2. unstable (stop): ‖x_k‖_M > kUnstableGrowthFactor · B_k with
+//      B_k = max(‖x_0‖_M + T‖v_0‖_M, T√(2 S_k), max_{j≤J} ‖x_j‖_M), J the largest power of two
+//      ≤ k/2 (the state earlier in the run, so that growth polynomial in t never trips it):
+//      eight orders of magnitude beyond what the initial state, the energy budget and the run so
+//      far explain. The only rule without diagnostics (then without the T√(2S_k) term).
+//   3. inaccurate (marked at the end, the run goes on): max_k |E_k + W_k − E_0| >
+//      kInaccurateBalanceFraction · S̃_N with the scale of the whole run (a run from rest has tiny
+//      energies in its first steps, where an O(h^p) balance error is relatively large but
+//      absolutely negligible); the message names the step of the largest error. Without P_k the
+//      largest |W_j| (which contains it) enters S_k.
+// Healthy runs stay far from every bound (margins measured on examples/, docs/conventions.md).
+//
 // Usage — one call:
 //   fracvi::Solution sol = fracvi::integrate(problem);                     // fvi-gl
 //   fracvi::Solution sol = fracvi::integrate(problem, fracvi::fvi_bdf2());  // any scheme
@@ -43,6 +70,12 @@ struct StepView {
   double balance;
 };
 
+/// The rules of the health checks above.
+inline constexpr double kUnstableDampingFactor = 10.0;
+inline constexpr double kUnstableGrowthFactor = 1e8;
+inline constexpr double kInaccurateBalanceFraction = 0.5;
+inline constexpr double kActivityFraction = 1e-3;
+
 class Integrator {
  public:
   /// Validates problem, method and options, checks that the method applies and that the step is
@@ -56,9 +89,10 @@ class Integrator {
   Integrator(const Integrator&) = delete;
   Integrator& operator=(const Integrator&) = delete;
 
-  /// Advances one step (k → k+1). Returns kRunning while steps remain, kSuccess after the last
-  /// one, or a failure status; once finished or failed it does nothing and returns the status.
-  /// Never allocates, never throws.
+  /// Advances one step (k → k+1). Returns kRunning while steps remain, kSuccess (or kInaccurate,
+  /// when the balance rule tripped on the way) after the last one, or a failure status (kUnstable
+  /// included); once finished or failed it does nothing and returns the status. Never allocates,
+  /// never throws.
   Status step() noexcept;
 
   /// Steps to the end. observer(const StepView&) is called for the current state if no step has
@@ -69,7 +103,9 @@ class Integrator {
     Status s = status();
     while (s == Status::kRunning) {
       s = step();
-      if (s == Status::kRunning || s == Status::kSuccess) observer(view());
+      if (s == Status::kRunning || s == Status::kSuccess || s == Status::kInaccurate) {
+        observer(view());
+      }
     }
     return s;
   }
@@ -107,6 +143,12 @@ class Integrator {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// Throws ValidationError when the stored trajectory of `problem` with `options` (rows × (16 d +
+/// 40) bytes, allocated up front by the Integrator) would not fit in the machine's physical
+/// memory, with the number and the smallest [output] every that fits in half of it. The
+/// Integrator's constructor calls it; fracvi::prepare_run too.
+void check_storage(const InitialValueProblem& problem, const IntegratorOptions& options);
 
 /// One call: validate, integrate to t_end, run the mirror check (if enabled), return.
 Solution integrate(const InitialValueProblem& problem, const Method& method = fvi_gl(),

@@ -2,8 +2,11 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <ostream>
+#include <stdexcept>
 #include <string>
 
 #include "fracvi/integrate/integrator.hpp"
@@ -28,8 +31,25 @@ nlohmann::json json_row(const RowMatrixXd& m, Eigen::Index row);
 /// Appends v with 17 significant digits (enough to round-trip every double).
 void append_csv_number(std::string& out, double v);
 /// Writes `content` to file.tmp and renames it to `file`, so that a crash never leaves a
-/// half-written file under the final name. Throws std::runtime_error on I/O failure.
+/// half-written file under the final name. Throws OutputError on I/O failure (naming the file and
+/// the system's reason) after removing the temporary.
 void write_file_atomically(const std::filesystem::path& file, const std::string& content);
+/// Same, with the content streamed by `write` (a large trajectory is never held as one string).
+void write_file_atomically(const std::filesystem::path& file,
+                           const std::function<void(std::ostream&)>& write);
+
+/// An output directory or file that cannot be created or written.
+class OutputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Creates `dir` (and its parents) if needed and checks that a file can be created in it — before
+/// a run starts, so that hours of work are never lost to an output directory that was a file,
+/// unwritable or a name too long. Throws OutputError "<dir>: <reason>" (exists and is not a
+/// directory, permission denied, file name too long, read-only file system, …). The probe file it
+/// writes is removed again.
+void prepare_output_directory(const std::filesystem::path& dir);
 
 /// summary.json's content: status, message, steps, final state, diagnostics, statistics and the
 /// fully resolved problem (so the run can be reproduced from its output).

@@ -47,6 +47,14 @@ class Stepper {
   [[nodiscard]] virtual const Eigen::VectorXd& momentum() const = 0;
   /// W_k, cumulative (0 at k = 0); NaN when the scheme was built without diagnostics.
   [[nodiscard]] virtual double work() const = 0;
+  /// The part of −W_k put in from outside: the work of f and of the explicit time dependence of U,
+  /// cumulative (0 at k = 0), so that W_k + supplied_work() is the work of the damping alone.
+  /// The Integrator's health check needs it to tell energy put in by f from energy put in by an
+  /// unstable damping term. NaN when not tracked (the default; the check then runs only when f = 0
+  /// and U does not depend on t, where it is 0) or without diagnostics.
+  [[nodiscard]] virtual double supplied_work() const {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
 
   /// The backward run of the scheme's mirror equation on a finished run: max_k ‖y_k − x_{N−k}‖_∞
   /// over the stored rows: row i of `x` is x at step `steps[i]` (steps ascending; rows past
