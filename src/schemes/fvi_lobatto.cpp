@@ -413,7 +413,7 @@ class LobattoStepper final : public Stepper {
     x_ = problem.x0;
     v_ = problem.v0;
     mass_.multiply(problem.v0, p_);
-    work_ = diagnostics_ ? 0.0 : kNaN;
+    work_ = supplied_ = diagnostics_ ? 0.0 : kNaN;
     if (linear_) {
       cur_.stages.colwise() = problem.x0;
       for (int a = 0; a < s_; ++a) cur_.times(a) = problem.t0 + nodes_.c(a) * h_;
@@ -428,6 +428,7 @@ class LobattoStepper final : public Stepper {
   [[nodiscard]] const Eigen::VectorXd& velocity() const override { return v_; }
   [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
   [[nodiscard]] double work() const override { return work_; }
+  [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override {
     return stage_matrix_.is_sparse() ? LinearSolver::kSparse : LinearSolver::kDense;
   }
@@ -481,7 +482,7 @@ class LobattoStepper final : public Stepper {
   Eigen::VectorXd x_, v_, p_, r_v0_, r_x0_, load_v_, load_x_, work_v_, work_x_, residual_,
       solve_scratch_;
   Blocks cur_;
-  double work_ = 0.0;
+  double work_ = 0.0, supplied_ = 0.0;
 };
 
 void LobattoStepper::stage_forces(Blocks& b, int first, int last) const {
@@ -628,15 +629,21 @@ Status LobattoStepper::advance() {
   if (!cur_.force.allFinite()) return fail(Status::kNonFinite, "non-finite momentum");
   if (diagnostics_) {
     // W += h Σ_a b_a (R G̃_a − f_a)·V_a + ∫ R D^βP · ẋ_h dt (exact moments) − ∫ ∂_t U dt.
+    // The work of f and of ∂_tU is also summed apart (supplied_work(): the health check tells
+    // energy put in from outside from energy put in by an unstable damping term).
+    auto supply = [&](double w) {
+      work_ -= w;
+      supplied_ += w;
+    };
     for (int a = 0; a < s_; ++a) {
-      double power = 0.0;
-      if (damped_) power += cur_.damping_forces.col(a).dot(cur_.velocities.col(a));
+      if (damped_) {
+        work_ += h_ * nodes_.b(a) * cur_.damping_forces.col(a).dot(cur_.velocities.col(a));
+      }
       if (has_forcing_ && !forcing_moments_) {
         problem_.model.forcing(cur_.times(a), cur_.scratch);
-        power -= cur_.scratch.dot(cur_.velocities.col(a));
+        supply(h_ * nodes_.b(a) * cur_.scratch.dot(cur_.velocities.col(a)));
       }
-      if (forcing_moments_) work_ -= forcing_slope_.col(a).dot(cur_.delta.col(a));
-      work_ += h_ * nodes_.b(a) * power;
+      if (forcing_moments_) supply(forcing_slope_.col(a).dot(cur_.delta.col(a)));
       if (damped_ && velocity_load_) work_ += work_v_(a) * r_v0_.dot(cur_.delta.col(a));
       if (damped_ && position_load_) work_ += work_x_(a) * r_x0_.dot(cur_.delta.col(a));
       if (u_time_dependent_) {
@@ -645,7 +652,7 @@ Status LobattoStepper::advance() {
         const double dudt = (potential_->value(cur_.stages.col(a), cur_.times(a) + dt) -
                              potential_->value(cur_.stages.col(a), cur_.times(a) - dt)) /
                             (2.0 * dt);
-        work_ -= h_ * nodes_.b(a) * dudt;
+        supply(h_ * nodes_.b(a) * dudt);
       }
     }
   }

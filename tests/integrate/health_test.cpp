@@ -83,7 +83,12 @@ TEST(Health, ExplicitMemoryPastItsBoundIsUnstable) {
       const std::string label = std::string(info->name) + " 2a = " + std::to_string(2 * alpha);
       const std::size_t steps = 20000;
       const InitialValueProblem below = damped_oscillator(alpha, 0.97 * r_star, h, steps);
-      const InitialValueProblem above = damped_oscillator(alpha, 1.03 * r_star, h, steps);
+      // A sufficient bound (StabilityBound::sharp false: the Lobatto schemes' measured damping
+      // bound with its 3 % margin) is not the threshold: 1.03 × it can still be stable. There the
+      // forced run is taken at 1.2 × (past every measured threshold, fvi_lobatto_test.cpp).
+      const bool sharp = info->stability(damped_oscillator(alpha, r_star, h, 10)).sharp;
+      const InitialValueProblem above =
+          damped_oscillator(alpha, (sharp ? 1.03 : 1.2) * r_star, h, steps);
       ASSERT_TRUE(info->stability(below).stable) << label;
       ASSERT_FALSE(info->stability(above).stable) << label;
       IntegratorOptions options;
