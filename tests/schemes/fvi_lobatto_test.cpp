@@ -108,20 +108,7 @@ class PulsingSpring final : public Potential {
   bool declared_;
 };
 
-/// The published damped 2-D oscillator q'' + 0.25 q' + 0.5 q = 0, q(0) = (0.8, −0.5),
-/// q'(0) = (0.4, 0), on [0, 30] (tests/schemes/published_numbers_test.cpp).
-InitialValueProblem published_oscillator(std::size_t steps) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd::Identity(2, 2);
-  p.model.damping = 0.25 * Eigen::MatrixXd::Identity(2, 2);
-  p.model.alpha = 0.5;
-  p.model.potential = make_quadratic_potential(0.5 * Eigen::MatrixXd::Identity(2, 2));
-  p.x0 = Eigen::Vector2d(0.8, -0.5);
-  p.v0 = Eigen::Vector2d(0.4, 0.0);
-  p.t_end = 30.0;
-  p.steps = steps;
-  return p;
-}
+using test::published_oscillator_2d;
 
 /// x'' + r D^β x + k x = 0 (scalar, Caputo unless told), x0, v0, on [0, t_end].
 InitialValueProblem scalar_oscillator(double beta, double r, double k, double x0, double v0,
@@ -227,7 +214,7 @@ TEST(LobattoEnergyAccount, DampedOscillator2DOrder2sMinus2) {
     const std::vector<std::size_t> steps = s == 4 ? std::vector<std::size_t>{16, 32, 64, 128, 256}
                                                   : std::vector<std::size_t>{32, 64, 128, 256};
     const BalanceStudy st =
-        balance_study(lobatto(s), "damped 2-D oscillator (2a = 1)", published_oscillator, steps);
+        balance_study(lobatto(s), "damped 2-D oscillator (2a = 1)", published_oscillator_2d, steps);
     ::testing::Test::RecordProperty("balance_order_oscillator_s" + std::to_string(s),
                                     std::to_string(st.balance.slope));
     EXPECT_TRUE(st.balance.valid) << st.balance.table();

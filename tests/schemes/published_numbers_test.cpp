@@ -28,6 +28,7 @@
 #include <vector>
 
 #include "../support/order_fit.hpp"
+#include "../support/test_problems.hpp"
 #include "fracvi/core/error.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/potential.hpp"
@@ -80,15 +81,7 @@ TEST(PublishedNumbers, MidpointFviDampedOscillator) {
 
 // x'' + 0.25x' + 0.5x = 0 per component: x = e^{−t/8}(x0 cos ωt + (v0 + x0/8)/ω sin ωt).
 double lobatto_oscillator_error(const char* scheme, std::size_t steps) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd::Identity(2, 2);
-  p.model.damping = 0.25 * Eigen::MatrixXd::Identity(2, 2);
-  p.model.alpha = 0.5;
-  p.model.potential = make_quadratic_potential(0.5 * Eigen::MatrixXd::Identity(2, 2));
-  p.x0 = Eigen::Vector2d(0.8, -0.5);
-  p.v0 = Eigen::Vector2d(0.4, 0.0);
-  p.t_end = 30.0;
-  p.steps = steps;
+  const InitialValueProblem p = test::published_oscillator_2d(steps);
   IntegratorOptions options;
   options.mirror = false;
   const Solution sol = integrate(p, *parse_method(scheme), options);
@@ -131,44 +124,6 @@ TEST(PublishedNumbers, LobattoFviDampedOscillator2D) {
   }
 }
 
-double bagley_torvik_error(const char* scheme, std::size_t steps) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd::Identity(1, 1);
-  p.model.damping = Eigen::MatrixXd::Identity(1, 1);
-  p.model.alpha = 0.25;  // D^{1/2}
-  p.model.potential = make_quadratic_potential(Eigen::MatrixXd::Identity(1, 1));
-  p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> out) {
-    out(0) = t * t * t + 6.0 * t + 16.0 / (5.0 * std::sqrt(M_PI)) * std::pow(t, 2.5);
-  };
-  p.x0 = Eigen::VectorXd::Zero(1);
-  p.v0 = Eigen::VectorXd::Zero(1);
-  p.t_end = 1.0;
-  p.steps = steps;
-  IntegratorOptions options;
-  options.mirror = false;
-  const Solution sol = integrate(p, *parse_method(scheme), options);
-  EXPECT_TRUE(sol.ok()) << sol.message;
-  double err = 0.0;
-  for (Eigen::Index k = 0; k < sol.x.rows(); ++k)
-    err = std::max(err, std::abs(sol.x(k, 0) - std::pow(sol.t(k), 3)));
-  return err;
-}
-
-TEST(PublishedNumbers, LobattoFviBagleyTorvik) {
-  const double s2_coarse = bagley_torvik_error("fvi-lobatto2", 4);
-  const double s2_fine = bagley_torvik_error("fvi-lobatto2", 256);
-  const double s4_coarse = bagley_torvik_error("fvi-lobatto4", 4);
-  std::printf(
-      "  fvi-lobatto2: %.10e (published 4.8039e-02) at N = 4, %.10e (1.1227e-05) at "
-      "N = 256; fvi-lobatto4: %.10e (5.04e-07) at N = 4\n",
-      s2_coarse, s2_fine, s4_coarse);
-  EXPECT_EQ(five_digits(s2_coarse), "4.8039e-02");
-  EXPECT_EQ(five_digits(s2_fine), "1.1227e-05");
-  char s4[32];
-  std::snprintf(s4, sizeof s4, "%.2e", s4_coarse);
-  EXPECT_STREQ(s4, "5.04e-07");
-}
-
 // The forcing's quadrature caps the published orders (fvi_lobatto.md §7.3): with
 // method.load = "moments" (exact Galerkin moments of f, tanh–sinh on the first interval) the two
 // Bagley–Torvik problems reach, measured here and in the independent prototype: t³ with D^{1/2}:
@@ -205,13 +160,34 @@ double bagley_torvik_load_error(const BagleyTorvik& bt, const char* scheme, std:
   return err;
 }
 
+// The published Bagley–Torvik problem with D^{1/2}, exact q = t³ (pointwise forcing).
+const BagleyTorvik kCubic{0.25,
+                          [](double t) {
+                            return t * t * t + 6.0 * t +
+                                   16.0 / (5.0 * std::sqrt(M_PI)) * std::pow(t, 2.5);
+                          },
+                          [](double t) { return t * t * t; }};
+
+double bagley_torvik_error(const char* scheme, std::size_t steps) {
+  return bagley_torvik_load_error(kCubic, scheme, steps, ForcingLoad::kPointwise);
+}
+
+TEST(PublishedNumbers, LobattoFviBagleyTorvik) {
+  const double s2_coarse = bagley_torvik_error("fvi-lobatto2", 4);
+  const double s2_fine = bagley_torvik_error("fvi-lobatto2", 256);
+  const double s4_coarse = bagley_torvik_error("fvi-lobatto4", 4);
+  std::printf(
+      "  fvi-lobatto2: %.10e (published 4.8039e-02) at N = 4, %.10e (1.1227e-05) at "
+      "N = 256; fvi-lobatto4: %.10e (5.04e-07) at N = 4\n",
+      s2_coarse, s2_fine, s4_coarse);
+  EXPECT_EQ(five_digits(s2_coarse), "4.8039e-02");
+  EXPECT_EQ(five_digits(s2_fine), "1.1227e-05");
+  char s4[32];
+  std::snprintf(s4, sizeof s4, "%.2e", s4_coarse);
+  EXPECT_STREQ(s4, "5.04e-07");
+}
+
 TEST(PublishedNumbers, MomentLoadLiftsTheForcingCap) {
-  const BagleyTorvik cubic{0.25,
-                           [](double t) {
-                             return t * t * t + 6.0 * t +
-                                    16.0 / (5.0 * std::sqrt(M_PI)) * std::pow(t, 2.5);
-                           },
-                           [](double t) { return t * t * t; }};
   const BagleyTorvik root{0.75,
                           [](double t) {
                             return 3.75 * std::sqrt(t) + 15.0 * std::sqrt(M_PI) / 8.0 * t +
@@ -227,10 +203,10 @@ TEST(PublishedNumbers, MomentLoadLiftsTheForcingCap) {
     std::vector<std::size_t> steps = {16, 32, 64, 128};
   };
   for (const Row& row :
-       {Row{&cubic, "D^1/2, t^3", "fvi-lobatto3", 3.6, 3.9},
+       {Row{&kCubic, "D^1/2, t^3", "fvi-lobatto3", 3.6, 3.9},
         // s = 4 reaches the round-off floor from N = 64: coarser steps, local
         // orders 4.34, 4.46 → 4.5.
-        Row{&cubic, "D^1/2, t^3", "fvi-lobatto4", 3.6, 4.3, {8, 16, 32, 64}},
+        Row{&kCubic, "D^1/2, t^3", "fvi-lobatto4", 3.6, 4.3, {8, 16, 32, 64}},
         Row{&root, "D^3/2, t^5/2", "fvi-lobatto2", 1.7, 1.85},
         Row{&root, "D^3/2, t^5/2", "fvi-lobatto3", 1.6, 2.9},
         Row{&root, "D^3/2, t^5/2", "fvi-lobatto4", 1.6, 2.9},

@@ -219,4 +219,19 @@ inline InitialValueProblem oscillator_problem(const LinearOscillator& ref, Conve
   return problem;
 }
 
+/// The damped 2-D oscillator of the RKCQ paper's published numbers: q'' + 0.25 q' + 0.5 q = 0,
+/// q(0) = (0.8, −0.5), q'(0) = (0.4, 0), on [0, 30] (tests/schemes/published_numbers_test.cpp).
+inline InitialValueProblem published_oscillator_2d(std::size_t steps) {
+  InitialValueProblem p;
+  p.model.mass = Eigen::MatrixXd::Identity(2, 2);
+  p.model.damping = 0.25 * Eigen::MatrixXd::Identity(2, 2);
+  p.model.alpha = 0.5;
+  p.model.potential = make_quadratic_potential(0.5 * Eigen::MatrixXd::Identity(2, 2));
+  p.x0 = Eigen::Vector2d(0.8, -0.5);
+  p.v0 = Eigen::Vector2d(0.4, 0.0);
+  p.t_end = 30.0;
+  p.steps = steps;
+  return p;
+}
+
 }  // namespace fracvi::test
