@@ -110,7 +110,7 @@ Command add_convergence_command(CLI::App& parent) {
                               {"reference", study.reference},
                               {"declared_order", study.declared_order},
                               {"fitted_order", study.fitted_order},
-                              {"method", "fvi-gl"}};
+                              {"method", spec.scheme}};
     if (!write_results("convergence", dir, [&] {
           write_file_atomically(dir / "convergence.csv", csv);
           write_file_atomically(dir / "convergence.json", meta.dump(2) + "\n");

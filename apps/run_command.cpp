@@ -117,6 +117,12 @@ Command add_run_command(CLI::App& parent) {
       std::printf("  output            %s/{trajectory.csv,summary.json,problem.toml%s}\n",
                   dir.string().c_str(), plot_note.empty() ? ",*.png" : "");
       if (!plot_note.empty()) std::printf("  plots             %s\n", plot_note.c_str());
+    } else if (!solution.ok()) {
+      // --quiet silences the summary, not a failure: one line on stderr (issue 14).
+      std::fprintf(stderr, "fracvi run: %s: %s%s%s (after %zu of %lld steps; files in %s)\n",
+                   spec.name.c_str(), to_string(solution.status).data(),
+                   solution.message.empty() ? "" : ": ", solution.message.c_str(),
+                   solution.steps_done, spec.steps, dir.string().c_str());
     }
     return solution.ok() ? kExitSuccess : kExitNumericalFailure;
   };

@@ -233,6 +233,12 @@ class Run(unittest.TestCase):
                                   f'velocity = [{velocity}]\n[time]\nend = {end}\n'
                                   f'steps = {steps}\n')
                 out = os.path.join(self.dir, name)
+                # --quiet: no summary, but the failure is one line on stderr.
+                r = run("run", path, "--out", out + "-quiet", "--no-plot", "--quiet")
+                self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+                self.assertEqual(r.stdout, "")
+                self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+                self.assertIn(f"fracvi run: {name}: inaccurate: ", r.stderr)
                 r = run("run", path, "--out", out, "--no-plot")
                 self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
                 self.assertIn("status            inaccurate: ", r.stdout)
@@ -420,9 +426,13 @@ class Methods(unittest.TestCase):
             path = os.path.join(tmp, "osc.toml")
             with open(path, "w", encoding="utf-8") as f:
                 f.write(text)
-            r = run("convergence", path, "--steps", "200,400,800,1600", "--reference", exact)
+            out = os.path.join(tmp, "conv")
+            r = run("convergence", path, "--steps", "200,400,800,1600", "--reference", exact,
+                    "--out", out, "--no-plot")
             self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
             self.assertIn("scheme fvi-bdf2, declared order 2", r.stdout)
+            with open(os.path.join(out, "convergence.json"), encoding="utf-8") as f:
+                self.assertEqual(json.load(f)["method"], "fvi-bdf2")  # was always "fvi-gl"
             fitted = float(r.stdout.split("least-squares order:")[1].split()[0])
             self.assertGreater(fitted, 1.9, r.stdout)
 
