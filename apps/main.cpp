@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "fracvi/core/version.hpp"
 
 int main(int argc, char** argv) {
   using namespace fracvi::cli;
@@ -15,6 +16,7 @@ int main(int argc, char** argv) {
       "f(t)\n(Jimenez & Ober-Bloebaum). alpha is the Lagrangian order; the damping order is 2 "
       "alpha.",
       "fracvi"};
+  app.set_version_flag("--version", fracvi::version_string());
   app.require_subcommand(1);
   app.fallthrough(false);
   std::vector<Command> commands{add_run_command(app),        add_convergence_command(app),
@@ -38,6 +40,8 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     // Which subcommand failed, so that the line names it.

@@ -10,8 +10,21 @@
 #include "fracvi/core/memory.hpp"
 #include "fracvi/core/newton_options.hpp"
 #include "fracvi/core/status.hpp"
+#include "fracvi/core/version.hpp"
 
 namespace fracvi {
+
+std::string_view version() {
+  return FRACVI_VERSION;
+}
+
+std::string_view git_commit() {
+  return FRACVI_GIT_COMMIT;
+}
+
+std::string version_string() {
+  return "fracvi " + std::string(version()) + " (commit " + std::string(git_commit()) + ")";
+}
 
 std::string_view to_string(Status status) {
   switch (status) {

@@ -1,4 +1,5 @@
 #include "fracvi/io/output.hpp"
+#include "fracvi/core/version.hpp"
 
 #include <cerrno>
 #include <charconv>
@@ -137,6 +138,7 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
   if (!spec.reference.empty())
     reference_error = json_number(max_error(s, parse_reference(spec.reference)));
   return {
+      {"fracvi_version", version_string()},
       {"status", s.ok() ? "success" : std::string(to_string(s.status))},
       {"message", s.message},
       {"steps", s.steps_done},
@@ -185,7 +187,8 @@ void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
     }
   });
   write_file_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
-  write_file_atomically(dir / "problem.toml", to_toml(spec));
+  write_file_atomically(dir / "problem.toml",
+                        "# written by " + version_string() + "\n" + to_toml(spec));
 }
 
 }  // namespace fracvi

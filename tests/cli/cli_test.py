@@ -118,6 +118,19 @@ class BadInput(unittest.TestCase):
         self.assert_bad(["weights", "--order", "0.5", "-n", "0"], "-n", "0", "positive")
         self.assert_bad(["weights", "--order", "0.5", "-n", "-3"], "-n", "-3")
 
+    def test_version(self):
+        r = run("--version")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertRegex(r.stdout.strip(), r"^fracvi \d+\.\d+\.\d+ \(commit ([0-9a-f]+|unknown)\)$")
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "v")
+            r2 = run("run", "--out", out, "--no-plot", "--quiet", "--set", "time.steps=100")
+            self.assertEqual(r2.returncode, 0, r2.stderr)
+            with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+                self.assertEqual(json.load(f)["fracvi_version"], r.stdout.strip())
+            with open(os.path.join(out, "problem.toml"), encoding="utf-8") as f:
+                self.assertEqual(f.readline().strip(), "# written by " + r.stdout.strip())
+
     def test_unknown_scheme(self):
         self.assert_bad(["weights", "--order", "0.5", "--scheme", "bdf3", "-n", "3"],
                         "--scheme", "bdf3", "gl, bdf2 or trapezoidal")
