@@ -50,6 +50,13 @@ std::string draw_plots(const std::filesystem::path& dir, bool /*quiet*/) {
   return run_plot_script("plot.py", dir);
 }
 
+void remove_plots(const std::filesystem::path& dir) {
+  for (const char* name : {"trajectory.png", "phase.png", "energy.png", "spacetime.png"}) {
+    std::error_code ignored;  // absent or not removable: nothing to do (the run's data are written)
+    std::filesystem::remove(dir / name, ignored);
+  }
+}
+
 std::string draw_convergence_plot(const std::filesystem::path& dir) {
   return run_plot_script("plot_convergence.py", dir);
 }

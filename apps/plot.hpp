@@ -11,6 +11,9 @@ namespace fracvi::cli {
 /// are written regardless).
 std::string draw_plots(const std::filesystem::path& dir, bool quiet);
 
+/// Removes the plots draw_plots() writes (python/fracvi/plot.py FILES), so that `run --no-plot`
+/// does not leave an earlier run's pictures beside new data.
+void remove_plots(const std::filesystem::path& dir);
 /// Draws convergence.png (log-log error against h) from convergence.csv in `dir`; "" or a note.
 std::string draw_convergence_plot(const std::filesystem::path& dir);
 

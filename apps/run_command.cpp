@@ -82,7 +82,11 @@ Command add_run_command(CLI::App& parent) {
     }
 
     std::string plot_note;
-    if (!opt->no_plot) plot_note = draw_plots(dir, opt->quiet);
+    if (opt->no_plot) {
+      remove_plots(dir);
+    } else {
+      plot_note = draw_plots(dir, opt->quiet);
+    }
 
     if (!opt->quiet) {
       const Eigen::Index last = solution.t.size() - 1;  // the last stored row
@@ -115,7 +119,7 @@ Command add_run_command(CLI::App& parent) {
                   solution.save_every);
       std::printf("  wall time         %.3f s\n", solution.wall_time_seconds);
       std::printf("  output            %s/{trajectory.csv,summary.json,problem.toml%s}\n",
-                  dir.string().c_str(), plot_note.empty() ? ",*.png" : "");
+                  dir.string().c_str(), !opt->no_plot && plot_note.empty() ? ",*.png" : "");
       if (!plot_note.empty()) std::printf("  plots             %s\n", plot_note.c_str());
     } else if (!solution.ok()) {
       // --quiet silences the summary, not a failure: one line on stderr (issue 14).

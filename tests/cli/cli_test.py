@@ -118,6 +118,19 @@ class BadInput(unittest.TestCase):
         self.assert_bad(["weights", "--order", "0.5", "-n", "0"], "-n", "0", "positive")
         self.assert_bad(["weights", "--order", "0.5", "-n", "-3"], "-n", "-3")
 
+    def test_no_plot_removes_stale_plots(self):
+        # An earlier run's pictures must not stay beside new data (issue 14 item 8).
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "stale")
+            os.makedirs(out)
+            for name in ("trajectory.png", "phase.png", "energy.png", "spacetime.png"):
+                with open(os.path.join(out, name), "wb") as f:
+                    f.write(b"old")
+            r = run("run", "--out", out, "--no-plot", "--set", "time.steps=100")
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertEqual([n for n in os.listdir(out) if n.endswith(".png")], [])
+            self.assertIn("{trajectory.csv,summary.json,problem.toml}", r.stdout)
+
     def test_version(self):
         r = run("--version")
         self.assertEqual(r.returncode, 0, r.stderr)
