@@ -558,8 +558,7 @@ Status LobattoStepper::advance() {
     (*forcing_load_)(tn, h_, n == 0, forcing_value_, forcing_slope_);
     cur_.loads.noalias() -= h_ * forcing_value_;
   }
-  // Guess: the stages on the line x_n + (t − t_n) v_n.
-  mass_solver_.inverse(p_, v_);
+  // Guess: the stages on the line x_n + (t − t_n) v_n (v_n = M⁻¹p_n, kept by the previous step).
   for (int a = 0; a < s_; ++a) cur_.delta.col(a) = (nodes_.c(a) * h_) * v_;
   cur_.stages = cur_.delta;
   cur_.stages.colwise() += x_;
