@@ -1,5 +1,6 @@
 // `fracvi run`: integrate a problem file (or the built-in problem) and write the results.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -9,6 +10,7 @@
 
 #include "cli.hpp"
 #include "fracvi/analysis/convergence.hpp"
+#include "fracvi/analysis/error_estimate.hpp"
 #include "fracvi/core/error.hpp"
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/integrate/integrator.hpp"
@@ -72,10 +74,18 @@ Command add_run_command(CLI::App& parent) {
         prepare_output(opt->out, std::filesystem::path("fracvi-out") / spec.name);
 
     Solution solution;
-    {
-      ProgressBar progress(problem.steps, !opt->quiet);
-      integrator->run([&progress](const StepView& s) { progress.update(s.k); });
-      solution = integrator->take_solution();
+    if (options.tolerance > 0.0) {
+      // method.tolerance: N doubled from time.steps until the error estimate meets it.
+      integrator.reset();
+      solution = integrate_to_tolerance(problem, prepared.method, options);
+    } else {
+      {
+        ProgressBar progress(problem.steps, !opt->quiet);
+        integrator->run([&progress](const StepView& s) { progress.update(s.k); });
+        solution = integrator->take_solution();
+      }
+      // Accuracy, not consistency: Richardson from companion runs (analysis/error_estimate.hpp).
+      estimate_error(problem, prepared.method, options, solution);
     }
     if (!write_results("run", dir, [&] { write_run_output(dir, spec, solution); })) {
       return kExitNumericalFailure;
@@ -96,8 +106,24 @@ Command add_run_command(CLI::App& parent) {
       std::printf("  status            %s%s%s\n",
                   solution.ok() ? "success" : to_string(solution.status).data(),
                   solution.message.empty() ? "" : ": ", solution.message.c_str());
+      const auto steps_run = static_cast<long long>(
+          solution.tolerance_runs.empty() ? problem.steps : solution.tolerance_runs.back().steps);
+      const double h_run = (spec.end - spec.start) / static_cast<double>(steps_run);
       std::printf("  steps             %zu of %lld  (h = %g, t in [%g, %g])\n", solution.steps_done,
-                  spec.steps, spec.step(), spec.start, spec.end);
+                  steps_run, h_run, spec.start, spec.end);
+      if (!solution.tolerance_runs.empty()) {
+        double total = 0.0;
+        std::string runs;
+        for (const ToleranceRun& r : solution.tolerance_runs) {
+          total += r.wall_seconds;
+          char item[96];
+          std::snprintf(item, sizeof item, "%sN = %zu: %.2e", runs.empty() ? "" : ", ", r.steps,
+                        r.error_estimate);
+          runs += item;
+        }
+        std::printf("  tolerance         %.2e: %s  (%zu runs, %.3f s in all)\n", options.tolerance,
+                    runs.c_str(), solution.tolerance_runs.size(), total);
+      }
       if (solution.t.size() > 0) {
         std::printf("  final time        %.10g\n", solution.t[last]);
         std::printf("  final position    %s\n", row_text(solution.x, last).c_str());
@@ -105,8 +131,22 @@ Command add_run_command(CLI::App& parent) {
         std::printf("  energy            E_0 = %.10g  ->  E_N = %.10g,  dissipated W_N = %.10g\n",
                     solution.energy[0], solution.energy[last], solution.dissipated[last]);
       }
-      std::printf("  balance error     max |E_k + W_k - E_0| = %.3e\n", solution.max_balance_error);
-      std::printf("  mirror error      max |y_k - x_(N-k)| = %.3e\n", solution.mirror_error);
+      const ErrorEstimate& estimate = solution.error_estimate;
+      if (std::isfinite(estimate.value)) {
+        std::printf("  error estimate    max |x_k - x(t_k)| ~ %.2e  (%s, order %.2f%s; %.3f s)\n",
+                    estimate.value, estimate.method.c_str(), estimate.order,
+                    std::isfinite(estimate.observed_order) ? " observed" : " declared",
+                    estimate.wall_seconds);
+      } else {
+        std::printf("  error estimate    none: %s\n", estimate.note.c_str());
+      }
+      if (std::isfinite(estimate.value) && !estimate.note.empty()) {
+        std::printf("                    note: %s\n", estimate.note.c_str());
+      }
+      std::printf("  balance error     max |E_k + W_k - E_0| = %.3e  (consistency check)\n",
+                  solution.max_balance_error);
+      std::printf("  mirror error      max |y_k - x_(N-k)| = %.3e  (consistency check)\n",
+                  solution.mirror_error);
       if (!spec.reference.empty()) {
         std::printf("  reference error   max |x_k - x_ref(t_k)| = %.3e\n",
                     max_error(solution, parse_reference(spec.reference)));

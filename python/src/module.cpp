@@ -33,6 +33,7 @@
 #include <utility>
 #include <vector>
 
+#include "fracvi/analysis/error_estimate.hpp"
 #include "fracvi/discrete/operators.hpp"
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/fractional/riemann_liouville.hpp"
@@ -255,7 +256,14 @@ std::unique_ptr<Run> run_problem(const ProblemSpec& spec, bool mirror, bool diag
   run->spec = spec;
   // The potential and forcing are compiled formulas: no Python runs during the integration.
   py::gil_scoped_release release;
-  run->solution = integrate(problem, prepared.method, options);
+  if (options.tolerance > 0.0) {
+    // method.tolerance: N doubled from time.steps until the error estimate meets it.
+    run->solution = integrate_to_tolerance(problem, prepared.method, options);
+  } else {
+    run->solution = integrate(problem, prepared.method, options);
+    // Accuracy, not consistency: Richardson from companion runs (analysis/error_estimate.hpp).
+    estimate_error(problem, prepared.method, options, run->solution);
+  }
   return run;
 }
 
@@ -473,6 +481,9 @@ void bind(py::module_& m) {
       .def_readonly("history_tolerance", &ProblemSpec::history_tolerance)
       .def_readonly("linear_solver", &ProblemSpec::linear_solver)
       .def_readonly("load", &ProblemSpec::load)
+      .def_readonly("error_estimate", &ProblemSpec::error_estimate)
+      .def_readonly("tolerance", &ProblemSpec::tolerance)
+      .def_readonly("max_steps", &ProblemSpec::max_steps)
       .def_readonly("threads", &ProblemSpec::threads)
       .def_readonly("every", &ProblemSpec::every)
       .def("to_dict", [](const ProblemSpec& s) { return to_python(to_json(s)); })
@@ -553,6 +564,8 @@ void bind(py::module_& m) {
       .def_property_readonly("max_newton_iterations_per_step",
                              [](const Run& r) { return r.solution.max_newton_iterations_per_step; })
       .def_property_readonly("mirror_error", [](const Run& r) { return r.solution.mirror_error; })
+      .def_property_readonly("error_estimate",
+                             [](const Run& r) { return r.solution.error_estimate.value; })
       .def_property_readonly("max_balance_error",
                              [](const Run& r) { return r.solution.max_balance_error; })
       .def_property_readonly("wall_time", [](const Run& r) { return r.solution.wall_time_seconds; })

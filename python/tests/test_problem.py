@@ -273,12 +273,13 @@ def test_schema_rows_name_their_cpp_member():
 
 
 def test_keywords_are_the_file_keys(tmp_path):
-    # Every [method]/[output] key is a keyword of integrate() and solve_bvp() under its file name
-    # (not its C++ name), and lands in that field of the problem.
+    # Every [method]/[output] key is a keyword of integrate() (and but for the error estimate's of
+    # solve_bvp()) under its file name (not its C++ name), and lands in that field of the problem.
     rows = [r for r in fracvi.problem_schema() if r["section"] in ("method", "output")]
     values = dict(scheme="fvi-bdf2", newton_tolerance=1e-11, newton_max_iterations=40,
                   history="direct", history_tolerance=1e-9, linear_solver="dense",
-                  load="pointwise", threads=1, every=2)
+                  load="pointwise", error_estimate="richardson", tolerance=10.0,
+                  max_steps=123456, threads=1, every=2)
     assert {r["key"] for r in rows} == set(values)
     problem = fracvi.Problem.from_toml(PROBLEM)
     fields = {k: v for k, v in values.items() if k != "history"}  # a run option of integrate()

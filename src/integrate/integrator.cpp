@@ -16,6 +16,11 @@ namespace fracvi {
 
 void validate(const IntegratorOptions& options) {
   validate(options.newton, "options.newton");
+  if (!(options.tolerance >= 0.0) || !std::isfinite(options.tolerance)) {
+    throw ValidationError("options.tolerance = " + format_number(options.tolerance) +
+                          " must be >= 0 (0: off)");
+  }
+  if (options.max_steps < 1) throw ValidationError("options.max_steps must be >= 1");
   if (options.history != HistoryKind::kAuto && options.history != HistoryKind::kDirect &&
       options.history != HistoryKind::kFast) {
     throw ValidationError("options.history has an unknown value");

@@ -52,6 +52,9 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   o.history_tolerance = spec.history_tolerance;
   o.linear_solver = *parse_linear_solver(spec.linear_solver);
   o.load = *parse_forcing_load(spec.load);
+  o.error_estimate = *parse_error_estimate(spec.error_estimate);
+  o.tolerance = spec.tolerance;
+  o.max_steps = static_cast<std::size_t>(spec.max_steps);
   o.threads = spec.threads;
   o.save_every = static_cast<std::size_t>(spec.every);
   return o;
@@ -132,6 +135,18 @@ void prepare_output_directory(const std::filesystem::path& dir) {
   }
 }
 
+// The doubling of method.tolerance (empty array without one).
+nlohmann::json tolerance_runs_json(const Solution& s) {
+  nlohmann::json runs = nlohmann::json::array();
+  for (const ToleranceRun& r : s.tolerance_runs) {
+    runs.push_back({{"steps", r.steps},
+                    {"error_estimate", json_number(r.error_estimate)},
+                    {"wall_seconds", r.wall_seconds},
+                    {"status", r.status}});
+  }
+  return runs;
+}
+
 nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
   const Eigen::Index last = s.t.size() - 1;  // the last stored row: step s.steps_done
   nlohmann::json reference_error;            // null without a [reference]
@@ -149,6 +164,15 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
       {"final_energy", s.energy.size() ? json_number(s.energy[last]) : nlohmann::json()},
       {"mirror_error", json_number(s.mirror_error)},
       {"reference_error", reference_error},
+      {"error_estimate", json_number(s.error_estimate.value)},
+      {"error_estimate_details",
+       {{"method", s.error_estimate.method},
+        {"order", json_number(s.error_estimate.order)},
+        {"observed_order", json_number(s.error_estimate.observed_order)},
+        {"nodes", s.error_estimate.nodes},
+        {"note", s.error_estimate.note},
+        {"wall_seconds", s.error_estimate.wall_seconds}}},
+      {"tolerance_runs", tolerance_runs_json(s)},
       {"max_balance_error", json_number(s.max_balance_error)},
       {"newton_iterations", s.newton_iterations},
       {"max_newton_iterations_per_step", s.max_newton_iterations_per_step},

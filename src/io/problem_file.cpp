@@ -626,6 +626,32 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
              "= \"" + p.load + "\" is not one of " + joined(loads) + did_you_mean(p.load, loads));
     }
   }
+  if (const auto* n = r.find("method", "error_estimate")) {
+    p.error_estimate = r.string(*n, "method.error_estimate");
+    if (!parse_error_estimate(p.error_estimate)) {
+      const std::vector<std::string> kinds{"richardson", "none"};
+      r.fail("method.error_estimate", "= \"" + p.error_estimate + "\" is not one of " +
+                                          joined(kinds) + did_you_mean(p.error_estimate, kinds));
+    }
+  }
+  if (const auto* n = r.find("method", "tolerance")) {
+    p.tolerance = r.number(*n, "method.tolerance");
+    if (!(p.tolerance > 0.0) || !std::isfinite(p.tolerance)) {
+      r.fail("method.tolerance", "= " + format_number(p.tolerance) +
+                                     " must be a positive number (the error estimate to reach; "
+                                     "leave it out for a run with time.steps)");
+    }
+  }
+  if (const auto* n = r.find("method", "max_steps")) {
+    p.max_steps = r.integer(*n, "method.max_steps");
+    if (p.max_steps < 1 || p.max_steps > kMaxSteps) {
+      r.fail("method.max_steps", "= " + std::to_string(p.max_steps) + " must be in [1, " +
+                                     std::to_string(kMaxSteps) + "]");
+    }
+  }
+  if (p.tolerance > 0.0 && p.error_estimate == "none") {
+    r.fail("method.tolerance", "needs an error estimate, but method.error_estimate = \"none\"");
+  }
   if (const auto* n = r.find("method", "threads")) {
     const long long threads = r.integer(*n, "method.threads");
     if (threads < 0 || threads > 4096) {

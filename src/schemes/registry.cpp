@@ -29,6 +29,16 @@ std::string_view to_string(ForcingLoad load) {
   return load == ForcingLoad::kMoments ? "moments" : "pointwise";
 }
 
+std::optional<ErrorEstimateKind> parse_error_estimate(std::string_view name) {
+  if (name == "richardson") return ErrorEstimateKind::kRichardson;
+  if (name == "none") return ErrorEstimateKind::kNone;
+  return std::nullopt;
+}
+
+std::string_view to_string(ErrorEstimateKind kind) {
+  return kind == ErrorEstimateKind::kRichardson ? "richardson" : "none";
+}
+
 std::span<const SchemeInfo* const> registered_schemes() {
   return kSchemes;
 }

@@ -216,6 +216,56 @@ class Run(unittest.TestCase):
         with open(os.path.join(out2, "summary.json"), encoding="utf-8") as f:
             self.assertEqual(json.load(f)["final_position"], summary["final_position"])
 
+    def test_error_estimate_and_tolerance(self):
+        # Every run reports an error estimate (Richardson from runs with N/2, N/4 steps); the
+        # balance and mirror lines say they are consistency checks. The damped oscillator
+        # x'' + 0.25 x' + x = 0 with fvi-bdf2 has a closed form: the estimate is within a factor 3.
+        path = self.write('name = "osc"\n[model]\ndim = 1\nmass = 1.0\ndamping = 0.25\n'
+                          'alpha = 0.5\npotential = "x1^2/2"\n[initial]\nposition = [1.0]\n'
+                          'velocity = [0.5]\n[time]\nend = 16.0\nsteps = 400\n[method]\n'
+                          'scheme = "fvi-bdf2"\n[reference]\nposition = '
+                          '["exp(-t/8)*(cos(w*t) + 0.625/w*sin(w*t))"]\n'.replace(
+                              "w", "sqrt(1 - 1/64)"))
+        out = os.path.join(self.dir, "est")
+        r = run("run", path, "--out", out, "--no-plot")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("error estimate    max |x_k - x(t_k)| ~", r.stdout)
+        self.assertIn("(consistency check)", r.stdout)
+        with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+            summary = json.load(f)
+        ratio = summary["error_estimate"] / summary["reference_error"]
+        self.assertTrue(1 / 3 <= ratio <= 3, ratio)
+        self.assertEqual(summary["error_estimate_details"]["method"], "richardson (N/2, N/4)")
+        self.assertEqual(summary["tolerance_runs"], [])
+        # method.tolerance doubles N until the estimate meets it, and says how it got there.
+        out = os.path.join(self.dir, "tol")
+        r = run("run", path, "--out", out, "--no-plot", "--set", "method.tolerance=1e-6")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+            summary = json.load(f)
+        runs = summary["tolerance_runs"]
+        self.assertEqual([x["steps"] for x in runs], [400 * 2**i for i in range(len(runs))])
+        self.assertGreater(runs[-2]["error_estimate"], 1e-6)
+        self.assertLessEqual(runs[-1]["error_estimate"], 1e-6)
+        self.assertEqual(summary["steps"], runs[-1]["steps"])
+        self.assertLess(summary["reference_error"], 3e-6)
+        # A ceiling that stops the doubling: `inaccurate`, exit 1, the last run kept.
+        out = os.path.join(self.dir, "ceiling")
+        r = run("run", path, "--out", out, "--no-plot", "--set", "method.tolerance=1e-9",
+                "--set", "method.max_steps=2000")
+        self.assertEqual(r.returncode, 1, r.stdout)
+        self.assertIn("inaccurate: method.tolerance = 1e-09 not reached: error estimate", r.stdout)
+        self.assertIn("would pass method.max_steps = 2000", r.stdout)
+        with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+            self.assertEqual(json.load(f)["steps"], 1600)
+        # Bad values name the field and the rule.
+        for setting, message in (("method.tolerance=-1", "method.tolerance = -1 must be a positive"),
+                                 ("method.max_steps=0", "method.max_steps = 0 must be in [1, "),
+                                 ("method.error_estimate=richardsen", "did you mean 'richardson'")):
+            r = run("run", path, "--out", out, "--no-plot", "--set", setting)
+            self.assertEqual(r.returncode, 2, setting)
+            self.assertIn(message, r.stderr)
+
     def test_problem_file_every_and_default_directory(self):
         path = self.write(PROBLEM + "[output]\nevery = 100\n")
         r = subprocess.run([FRACVI, "run", path, "--no-plot"], capture_output=True, text=True,
@@ -363,7 +413,8 @@ class Run(unittest.TestCase):
             (["method.newton_tolerence=1e-9"],
              "fracvi run: <built-in problem>: --set method.newton_tolerence: unknown key (did you "
              "mean 'newton_tolerance'?); valid in [method]: scheme, newton_tolerance, "
-             "newton_max_iterations, history, history_tolerance, linear_solver, load, threads"),
+             "newton_max_iterations, history, history_tolerance, linear_solver, load, "
+             "error_estimate, tolerance, max_steps, threads"),
             (["output.stride=2"],
              "fracvi run: <built-in problem>: --set output.stride: unknown key; valid in [output]: "
              "every"),

@@ -183,6 +183,9 @@ std::vector<std::string> differences(const fracvi::ProblemSpec& a, const fracvi:
   check(a.history_tolerance == b.history_tolerance, "history_tolerance");
   check(a.linear_solver == b.linear_solver, "linear_solver");
   check(a.load == b.load, "load");
+  check(a.error_estimate == b.error_estimate, "error_estimate");
+  check(a.tolerance == b.tolerance, "tolerance");
+  check(a.max_steps == b.max_steps, "max_steps");
   check(a.threads == b.threads, "threads");
   check(a.every == b.every, "every");
   check(a.reference == b.reference, "reference");
@@ -327,6 +330,9 @@ const std::vector<Case>& cases() {
       {"method.history_tolerance", "", [](Json& j) { j["method"]["history_tolerance"] = 3e-9; }},
       {"method.linear_solver", "", [](Json& j) { j["method"]["linear_solver"] = "dense"; }},
       {"method.load", "", [](Json& j) { j["method"]["load"] = "moments"; }},
+      {"method.error_estimate", "", [](Json& j) { j["method"]["error_estimate"] = "none"; }},
+      {"method.tolerance", "", [](Json& j) { j["method"]["tolerance"] = 1e-5; }},
+      {"method.max_steps", "", [](Json& j) { j["method"]["max_steps"] = 123456; }},
       {"method.threads", "", [](Json& j) { j["method"]["threads"] = 3; }},
       {"output.every", "", [](Json& j) { j["output"]["every"] = 5; }},
       {"reference.position", "",
@@ -418,7 +424,7 @@ TEST(ProblemWriters, SetOverridesAreCheckedAgainstTheSchema) {
       message("method.newton_tolerence=1e-9"),
       "<built-in>: --set method.newton_tolerence: unknown key (did you mean 'newton_tolerance'?); "
       "valid in [method]: scheme, newton_tolerance, newton_max_iterations, history, "
-      "history_tolerance, linear_solver, load, threads");
+      "history_tolerance, linear_solver, load, error_estimate, tolerance, max_steps, threads");
   EXPECT_EQ(message("output.every.n=1"),
             "<built-in>: --set output.every.n: unknown section [output.every]; valid sections: "
             "[model], [model.chain], [initial], [boundary], [time], [method], [output], "

@@ -34,6 +34,29 @@
 
 namespace fracvi {
 
+/// An a-posteriori estimate of the global error of a run (fracvi/analysis/error_estimate.hpp).
+/// Accuracy, unlike the balance and mirror errors, which are consistency checks.
+struct ErrorEstimate {
+  /// Estimated max over the compared grid nodes of ‖x_k − x(t_k)‖_∞; NaN when none was made
+  /// (`note` says why).
+  double value = std::numeric_limits<double>::quiet_NaN();
+  double order = std::numeric_limits<double>::quiet_NaN();  ///< the order p used in 1/(2^p − 1)
+  /// log2 of the ratio of the N/4–N/2 to the N/2–N differences (NaN without the N/4 run).
+  double observed_order = std::numeric_limits<double>::quiet_NaN();
+  std::size_t nodes = 0;      ///< grid nodes compared
+  std::string method;         ///< e.g. "richardson (N/2, N/4)"; empty when none
+  std::string note;           ///< why there is none, or what limits it
+  double wall_seconds = 0.0;  ///< the companion runs
+};
+
+/// One run of the doubling of integrate_to_tolerance() (fracvi/analysis/error_estimate.hpp).
+struct ToleranceRun {
+  std::size_t steps = 0;
+  double error_estimate = std::numeric_limits<double>::quiet_NaN();  ///< NaN when none
+  double wall_seconds = 0.0;  ///< the run, its mirror and its companion runs
+  std::string status;
+};
+
 struct Solution {
   Eigen::VectorXd t;              ///< t_k of the stored steps
   std::vector<std::size_t> step;  ///< the step index k of each stored row
@@ -59,6 +82,10 @@ struct Solution {
   double mirror_error = std::numeric_limits<double>::quiet_NaN();
   double max_balance_error = 0.0;  ///< max_k |balance[k]| (NaN with options.diagnostics = false)
   double wall_time_seconds = 0.0;  ///< x-run plus mirror run
+  /// Filled by estimate_error() (fracvi/analysis/error_estimate.hpp), not by the Integrator.
+  ErrorEstimate error_estimate;
+  /// The runs of integrate_to_tolerance() that led to this one (this one last); empty otherwise.
+  std::vector<ToleranceRun> tolerance_runs;
 
   std::string method;      ///< e.g. "fvi-gl"
   int declared_order = 0;  ///< Method::declared_order() for this model

@@ -93,6 +93,12 @@ struct ProblemSpec {
   std::string linear_solver = std::string(to_string(IntegratorOptions{}.linear_solver));
   /// "pointwise" or "moments" (how the forcing enters)
   std::string load = std::string(to_string(IntegratorOptions{}.load));
+  /// "richardson" or "none" (the a-posteriori error estimate of fracvi run / fracvi.integrate)
+  std::string error_estimate = std::string(to_string(IntegratorOptions{}.error_estimate));
+  /// > 0: choose N by doubling time.steps until the error estimate is <= tolerance; 0: off
+  double tolerance = IntegratorOptions{}.tolerance;
+  /// the ceiling of that doubling
+  long long max_steps = static_cast<long long>(IntegratorOptions{}.max_steps);
   int threads =
       IntegratorOptions{}.threads;  ///< OpenMP threads over the degrees of freedom; 0 = all
 

@@ -36,6 +36,18 @@ enum class ForcingLoad {
 std::optional<ForcingLoad> parse_forcing_load(std::string_view name);
 std::string_view to_string(ForcingLoad load);
 
+/// The a-posteriori estimate of the global error of a run (IntegratorOptions::error_estimate;
+/// fracvi/analysis/error_estimate.hpp).
+enum class ErrorEstimateKind {
+  /// None (Solution::error_estimate stays NaN).
+  kNone,
+  /// Richardson extrapolation from companion runs of the same problem with N/2 and N/4 steps
+  /// (without mirror and diagnostics: about 0.75 of the x-run's cost more).
+  kRichardson,
+};
+std::optional<ErrorEstimateKind> parse_error_estimate(std::string_view name);
+std::string_view to_string(ErrorEstimateKind kind);
+
 /// Bounds of IntegratorOptions::history_tolerance (the per-weight relative accuracy ε of the
 /// sum-of-exponentials fit: below 1e-13 the fit is limited by round-off, above 1e-3 it is useless).
 inline constexpr double kMinHistoryTolerance = 1e-13;
@@ -56,6 +68,15 @@ struct IntegratorOptions {
   /// How the forcing enters (ForcingLoad); kMoments is refused for schemes without it
   /// (SchemeInfo::forcing_moments).
   ForcingLoad load = ForcingLoad::kPointwise;
+  /// The error estimate the whole-run drivers (`fracvi run`, Python's fracvi.integrate) add to
+  /// the solution with estimate_error() (fracvi/analysis/error_estimate.hpp); the Integrator and
+  /// integrate() themselves run the one trajectory only.
+  ErrorEstimateKind error_estimate = ErrorEstimateKind::kRichardson;
+  /// > 0: the whole-run drivers choose N by doubling time.steps until the error estimate is
+  /// ≤ tolerance (integrate_to_tolerance(), fracvi/analysis/error_estimate.hpp); 0: off.
+  double tolerance = 0.0;
+  /// The ceiling of that doubling: a run that would need more steps ends `inaccurate`.
+  std::size_t max_steps = 10'000'000;
   /// Factorisation of the Newton matrix M + (h²/4)∇²U (and of M for v = M⁻¹p): kAuto uses a band
   /// or sparse factorisation when M is stored sparse and the potential declares a sparse Hessian
   /// (O(d) per step for chains), dense otherwise (symmetric_factor.hpp).

@@ -1,0 +1,194 @@
+#include "fracvi/analysis/error_estimate.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fracvi/core/error.hpp"
+#include "fracvi/integrate/integrator.hpp"
+
+namespace fracvi {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// x of a companion run with `steps` steps at the main run's stored nodes that it shares: row i of
+// the result is x^{steps} at the main run's step solution.step[i] when that node is on the
+// companion's grid (k · steps / N whole), NaN otherwise. nullopt when the run is refused or fails
+// (`why` says which).
+std::optional<RowMatrixXd> companion(const InitialValueProblem& problem, const Method& method,
+                                     const IntegratorOptions& options, const Solution& solution,
+                                     std::size_t steps, std::string& why) {
+  InitialValueProblem p = problem;
+  p.steps = steps;
+  IntegratorOptions o = options;
+  o.mirror = false;
+  o.diagnostics = false;
+  o.save_every = steps;  // the rows are taken by the observer below, not stored
+  const std::size_t n = problem.steps;
+  // Companion step j ↔ main step j · n / steps; main step k ↔ stored row (k / save_every, or
+  // the last row for k = n).
+  std::vector<Eigen::Index> row_of(steps + 1, -1);
+  for (std::size_t i = 0; i < solution.step.size(); ++i) {
+    const std::size_t k = solution.step[i];
+    if ((k * steps) % n == 0) row_of[k * steps / n] = static_cast<Eigen::Index>(i);
+  }
+  RowMatrixXd x = RowMatrixXd::Constant(solution.x.rows(), solution.x.cols(), kNaN);
+  try {
+    Integrator integrator(std::move(p), method, o);
+    const Status status = integrator.run([&](const StepView& view) {
+      if (const Eigen::Index row = row_of[view.k]; row >= 0) x.row(row) = view.x.transpose();
+    });
+    if (status != Status::kSuccess) {
+      why = "the companion run with " + std::to_string(steps) + " steps ended " +
+            std::string(to_string(status)) + ": " + integrator.solution().message;
+      return std::nullopt;
+    }
+  } catch (const ValidationError& e) {
+    why = "the companion run with " + std::to_string(steps) + " steps is refused: " + e.what();
+    return std::nullopt;
+  }
+  return x;
+}
+
+// max over the rows where both are defined of ‖a_i − b_i‖_∞, restricted to rows where `only` is
+// defined too (when given); and the number of rows compared.
+double max_difference(const RowMatrixXd& a, const RowMatrixXd& b, const RowMatrixXd* only,
+                      std::size_t& rows) {
+  double m = 0.0;
+  rows = 0;
+  for (Eigen::Index i = 0; i < a.rows(); ++i) {
+    if (std::isnan(b(i, 0)) || std::isnan(a(i, 0))) continue;
+    if (only != nullptr && std::isnan((*only)(i, 0))) continue;
+    m = std::max(m, (a.row(i) - b.row(i)).cwiseAbs().maxCoeff());
+    ++rows;
+  }
+  return m;
+}
+
+}  // namespace
+
+void estimate_error(const InitialValueProblem& problem, const Method& method,
+                    const IntegratorOptions& options, Solution& solution) {
+  ErrorEstimate& e = solution.error_estimate;
+  e = ErrorEstimate{};
+  if (options.error_estimate == ErrorEstimateKind::kNone) {
+    e.note = "not requested (method.error_estimate = \"none\")";
+    return;
+  }
+  if (!solution.ok()) {
+    e.note = "none: the run did not succeed";
+    return;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const std::size_t n = problem.steps;
+  const int declared = method.declared_order(problem.model);
+  const RowMatrixXd& x = solution.x;
+  std::string why;
+  std::optional<RowMatrixXd> half;
+  if (n % 2 == 0 && n >= 4) half = companion(problem, method, options, solution, n / 2, why);
+  if (half) {
+    std::size_t rows = 0;
+    const double d1 = max_difference(x, *half, nullptr, rows);
+    e.nodes = rows;
+    e.order = declared;
+    e.method = "richardson (N/2)";
+    std::optional<RowMatrixXd> quarter;
+    std::string why_quarter;
+    if (n % 4 == 0 && n >= 8) {
+      quarter = companion(problem, method, options, solution, n / 4, why_quarter);
+    }
+    if (quarter) {
+      std::size_t shared = 0;
+      const double d1_shared = max_difference(x, *half, &*quarter, shared);
+      const double d2 = max_difference(*half, *quarter, nullptr, shared);
+      e.method = "richardson (N/2, N/4)";
+      if (d1_shared > 0.0 && d2 > 0.0) {
+        e.observed_order = std::log2(d2 / d1_shared);
+        e.order = std::clamp(e.observed_order, 0.5, declared + 2.0);
+        if (e.observed_order < declared - 0.5) {
+          e.note = "observed order below the declared " + std::to_string(declared) +
+                   ": the steps are not in the asymptotic range, or the solution's regularity "
+                   "caps the order; the estimate uses the observed order";
+        }
+      }
+    } else if (!why_quarter.empty()) {
+      e.note = why_quarter + "; the declared order is used";
+    } else {
+      e.note = "N is not a multiple of 4: the declared order is used";
+    }
+    e.value = d1 / (std::pow(2.0, e.order) - 1.0);
+  } else {
+    // N odd or too small, or the N/2 run refused or failed: a finer companion with 2N steps.
+    const std::string why_half = why;
+    why.clear();
+    const std::optional<RowMatrixXd> twice =
+        companion(problem, method, options, solution, 2 * n, why);
+    if (!twice) {
+      e.note = (why_half.empty() ? "" : why_half + "; ") + why;
+    } else {
+      std::size_t rows = 0;
+      const double d = max_difference(x, *twice, nullptr, rows);
+      e.nodes = rows;
+      e.order = declared;
+      const double r = std::pow(2.0, e.order);
+      e.value = d * r / (r - 1.0);
+      e.method = "richardson (2N)";
+      e.note = why_half.empty() ? "N is odd: a companion run with 2N steps, the declared order"
+                                : why_half + "; a companion run with 2N steps instead";
+    }
+  }
+  e.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+Solution integrate_to_tolerance(const InitialValueProblem& problem, const Method& method,
+                                const IntegratorOptions& options,
+                                const std::function<void(std::size_t)>& before_run) {
+  if (!(options.tolerance > 0.0) || !std::isfinite(options.tolerance)) {
+    throw ValidationError("method.tolerance = " + format_number(options.tolerance) +
+                          " must be a positive number");
+  }
+  IntegratorOptions o = options;
+  if (o.error_estimate == ErrorEstimateKind::kNone) {
+    throw ValidationError(
+        "method.tolerance needs an error estimate: method.error_estimate = \"none\" is set");
+  }
+  InitialValueProblem p = problem;
+  std::vector<ToleranceRun> history;
+  for (;;) {
+    if (before_run) before_run(p.steps);
+    const auto start = std::chrono::steady_clock::now();
+    Solution solution = integrate(p, method, o);
+    estimate_error(p, method, o, solution);
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double estimate = solution.error_estimate.value;
+    history.push_back({p.steps, estimate, seconds, std::string(to_string(solution.status))});
+    solution.tolerance_runs = history;
+    if (!solution.ok() || estimate <= options.tolerance) return solution;
+    std::string reason;
+    if (!std::isfinite(estimate)) {
+      reason = "the run has no error estimate (" + solution.error_estimate.note + ")";
+    } else if (2 * p.steps > options.max_steps) {
+      reason = "doubling to " + std::to_string(2 * p.steps) +
+               " steps would pass method.max_steps = " + std::to_string(options.max_steps);
+    }
+    if (!reason.empty()) {
+      solution.status = Status::kInaccurate;
+      char reached[32];
+      std::snprintf(reached, sizeof reached, "%.3e", estimate);
+      solution.message = "method.tolerance = " + format_number(options.tolerance) +
+                         " not reached: error estimate " + reached +
+                         " at N = " + std::to_string(p.steps) + "; " + reason;
+      return solution;
+    }
+    p.steps *= 2;
+  }
+}
+
+}  // namespace fracvi
