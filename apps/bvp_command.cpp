@@ -87,7 +87,7 @@ Command add_bvp_command(CLI::App& parent) {
       throw UsageError(spec.source + ": " + e.what());
     }
     const std::filesystem::path dir =
-        prepare_output(opt->out, std::filesystem::path("fracvi-out") / spec.name);
+        prepare_output(opt->out, default_output(spec.name, "", opt->overrides));
     const BvpSolution solution = solve_bvp(problem, options);
     if (!write_results("bvp", dir, [&] { write_bvp_output(dir, spec, solution); })) {
       return kExitNumericalFailure;

@@ -54,11 +54,20 @@ inline std::string row_text(
   return s;
 }
 
-/// The output directory, prepared before any work (fracvi::prepare_output_directory): a directory
-/// that cannot be created or written is bad input (exit 2) naming the option, found before step 1.
-/// `given` is the --out argument ("" for the default `fallback`).
+/// The output directory, prepared before any work (fracvi::prepare_output_directory) and claimed
+/// for this process until it exits (fracvi::OutputLock): a directory that cannot be created or
+/// written, or that another fracvi run is using, is bad input (exit 2) naming the option, found
+/// before step 1. `given` is the --out argument ("" for the default `fallback`).
 std::filesystem::path prepare_output(const std::string& given,
                                      const std::filesystem::path& fallback);
+
+/// The default output directory fracvi-out/<name><suffix>, with the --set overrides appended
+/// (`-model.alpha=0.6`, characters other than letters, digits and ._=+- as '_'; past 80
+/// characters a hash of them instead), so that runs of one file with different overrides, e.g. a
+/// sweep from the shell, never share a directory; nothing is appended when the overrides set
+/// `name` (the user named the run).
+std::filesystem::path default_output(const std::string& name, const std::string& suffix,
+                                     const std::vector<std::string>& overrides);
 
 /// Writes a command's results with `write`; an I/O failure after the computation (disk full, the
 /// directory removed meanwhile) is one line on stderr naming the directory and the reason, and

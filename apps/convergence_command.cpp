@@ -67,7 +67,7 @@ Command add_convergence_command(CLI::App& parent) {
     // The output directory before the study (which may run for long), but bad input found by
     // the study itself (--steps, a step count beyond the stability bound) leaves no directory.
     const std::filesystem::path fallback =
-        std::filesystem::path("fracvi-out") / (spec.name + "-convergence");
+        default_output(spec.name, "-convergence", opt->overrides);
     const std::filesystem::path requested =
         opt->out.empty() ? fallback : std::filesystem::path(opt->out);
     std::error_code ec;

@@ -1,9 +1,13 @@
 // The commands' output directories: prepared before any work, written after it (cli.hpp).
+#include <algorithm>
+#include <cctype>
+#include <cstdint>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "cli.hpp"
 #include "fracvi/io/output.hpp"
@@ -12,14 +16,48 @@ namespace fracvi::cli {
 
 std::filesystem::path prepare_output(const std::string& given,
                                      const std::filesystem::path& fallback) {
+  // Claims held until the process exits (the run, then its writing).
+  static std::vector<OutputLock> claims;
   const std::filesystem::path dir = given.empty() ? fallback : std::filesystem::path(given);
   try {
     prepare_output_directory(dir);
+    claims.emplace_back(dir);
   } catch (const OutputError& e) {
     throw UsageError((given.empty() ? std::string("output directory ") : std::string("--out ")) +
                      e.what());
   }
   return dir;
+}
+
+std::filesystem::path default_output(const std::string& name, const std::string& suffix,
+                                     const std::vector<std::string>& overrides) {
+  std::string tail;
+  // `--set name=…` names the run: the user chose the directory's name, nothing is appended.
+  const bool named = std::any_of(overrides.begin(), overrides.end(),
+                                 [](const std::string& o) { return o.rfind("name=", 0) == 0; });
+  for (const std::string& o : named ? std::vector<std::string>{} : overrides) {
+    tail += '-';
+    for (const char c : o) {
+      const bool plain = std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '.' || c == '_' ||
+                         c == '=' || c == '+' || c == '-';
+      tail += plain ? c : '_';
+    }
+  }
+  constexpr std::size_t kMaxTail = 80;
+  if (tail.size() > kMaxTail) {
+    // FNV-1a of the overrides: short, stable across runs and machines.
+    std::uint64_t hash = 14695981039346656037ull;
+    for (const std::string& o : overrides) {
+      for (const char c : o + '\n') {
+        hash ^= static_cast<unsigned char>(c);
+        hash *= 1099511628211ull;
+      }
+    }
+    char buf[24];
+    std::snprintf(buf, sizeof buf, "-set-%016llx", static_cast<unsigned long long>(hash));
+    tail = buf;
+  }
+  return std::filesystem::path("fracvi-out") / (name + suffix + tail);
 }
 
 bool write_results(const char* command, const std::filesystem::path& dir,

@@ -71,7 +71,7 @@ Command add_run_command(CLI::App& parent) {
       throw UsageError(spec.source + ": " + e.what());
     }
     const std::filesystem::path dir =
-        prepare_output(opt->out, std::filesystem::path("fracvi-out") / spec.name);
+        prepare_output(opt->out, default_output(spec.name, "", opt->overrides));
 
     Solution solution;
     if (options.tolerance > 0.0) {

@@ -83,6 +83,13 @@ Quadrature trapezoidal_nodes(CqScheme scheme, double beta, double eps, std::size
   // Upper end: ∫_{s_hi}^{∞} P e^{−(n0 − a)s} ds ≤ target·|c_{n0}| at the first tail lag.
   const double s_hi = std::max(std::log(p / (target * c_window * (n0 - a))) / (n0 - a), 1e-3);
   const double u_hi = std::log(s_hi);
+  // A bounded node count: an order whose weights underflow (c_max_lag = 0) would put u_lo at −∞.
+  constexpr double kMaxNodes = 1e6;
+  if (!std::isfinite(u_lo) || !std::isfinite(u_hi) || (u_hi - u_lo) / h > kMaxNodes) {
+    throw std::invalid_argument(
+        "fit_exponentials: the weights of order " + std::to_string(beta) +
+        " are below the double range at the largest lag (no sum of exponentials can be verified)");
+  }
   Quadrature quad;
   for (double u = u_hi; u >= u_lo; u -= h) {
     const double s = std::exp(u);

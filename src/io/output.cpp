@@ -1,14 +1,19 @@
 #include "fracvi/io/output.hpp"
 #include "fracvi/core/version.hpp"
 
+#include <atomic>
 #include <cerrno>
 #include <charconv>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include "fracvi/analysis/convergence.hpp"
@@ -79,7 +84,9 @@ void append_csv_number(std::string& out, double v) {
 
 void write_file_atomically(const std::filesystem::path& file,
                            const std::function<void(std::ostream&)>& write) {
-  const auto tmp = std::filesystem::path(file.string() + ".tmp");
+  static std::atomic<unsigned> counter{0};
+  const auto tmp = std::filesystem::path(file.string() + ".tmp." + std::to_string(::getpid()) +
+                                         "." + std::to_string(counter++));
   // Nothing is left behind on failure: the temporary is removed before the error propagates.
   const auto fail = [&tmp](const std::string& what) {
     std::error_code ignored;
@@ -108,6 +115,59 @@ void write_file_atomically(const std::filesystem::path& file,
 
 void write_file_atomically(const std::filesystem::path& file, const std::string& content) {
   write_file_atomically(file, [&content](std::ostream& out) { out << content; });
+}
+
+namespace {
+// The claims of this process: lock file → (descriptor, nesting depth).
+std::mutex lock_mutex;
+std::map<std::string, std::pair<int, int>> held_locks;
+}  // namespace
+
+OutputLock::OutputLock(const std::filesystem::path& dir) {
+  const std::string path = (dir / ".fracvi.lock").string();
+  const std::lock_guard<std::mutex> guard(lock_mutex);
+  if (auto it = held_locks.find(path); it != held_locks.end()) {
+    ++it->second.second;
+    key_ = path;
+    return;
+  }
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    throw OutputError(dir.string() +
+                      ": cannot create the lock file .fracvi.lock: " + std::strerror(errno));
+  }
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int error = errno;
+    char owner[32] = {};
+    const ssize_t n = ::pread(fd, owner, sizeof owner - 1, 0);
+    ::close(fd);
+    if (error == EWOULDBLOCK) {
+      const std::string pid = n > 0 ? std::string(owner, static_cast<std::size_t>(n)) : "?";
+      throw OutputError(dir.string() + ": in use by another fracvi run (pid " +
+                        pid.substr(0, pid.find('\n')) +
+                        "); give each concurrent run its own --out directory");
+    }
+    throw OutputError(dir.string() + ": cannot lock .fracvi.lock: " + std::strerror(error));
+  }
+  const std::string pid = std::to_string(::getpid()) + "\n";
+  if (::ftruncate(fd, 0) != 0 ||
+      ::pwrite(fd, pid.data(), pid.size(), 0) != static_cast<ssize_t>(pid.size())) {
+    // The pid is only for the message of a competing run; the lock itself holds.
+  }
+  held_locks.emplace(path, std::make_pair(fd, 1));
+  key_ = path;
+}
+
+OutputLock::~OutputLock() {
+  if (key_.empty()) return;
+  const std::lock_guard<std::mutex> guard(lock_mutex);
+  auto it = held_locks.find(key_);
+  if (it == held_locks.end() || --it->second.second > 0) return;
+  // Unlinked while still locked: a process that opened the old file finds it locked and refuses;
+  // one that opens after this creates a fresh file and may claim it (this run is done).
+  ::unlink(key_.c_str());
+  ::close(it->second.first);
+  held_locks.erase(it);
 }
 
 void prepare_output_directory(const std::filesystem::path& dir) {
@@ -188,6 +248,11 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
 void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
                       const Solution& s) {
   prepare_output_directory(dir);
+  const OutputLock lock(dir);
+  // summary.json goes last and an earlier one first: a directory with a summary.json holds one
+  // complete run, whatever was interrupted.
+  std::error_code ec;
+  std::filesystem::remove(dir / "summary.json", ec);
   const Eigen::Index d = s.x.cols();
   // Streamed row by row through one reused buffer: the CSV text is about three times the size of
   // the stored trajectory and is never held in memory as a whole.
@@ -210,9 +275,9 @@ void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
       out << line;
     }
   });
-  write_file_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
   write_file_atomically(dir / "problem.toml",
                         "# written by " + version_string() + "\n" + to_toml(spec));
+  write_file_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
 }
 
 }  // namespace fracvi

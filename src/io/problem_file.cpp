@@ -7,6 +7,7 @@
 #include <toml++/toml.h>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -408,6 +409,21 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
                             format_bytes(static_cast<double>(memory)) + ")");
   }
   p.dim = static_cast<Eigen::Index>(dim);
+  // f(t) first: it needs only d, and a mismatch must be found before the d-sized work below (the
+  // potential's d variable names, the matrices: 27 s for d = 10^7 when it came last).
+  if (const auto* n = r.find("model", "force")) {
+    if (!n->is_array()) r.fail("model.force", "must be an array of d formulas in t");
+    const auto& a = *n->as_array();
+    if (!a.empty() && static_cast<Eigen::Index>(a.size()) != p.dim) {  // [] means no force
+      r.fail("model.force", "has " + std::to_string(a.size()) + " components, model.dim is " +
+                                std::to_string(p.dim));
+    }
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      const std::string key = "model.force[" + std::to_string(i + 1) + "]";
+      p.force.push_back(r.string(a[i], key));
+      check_expression(r, key, p.force.back(), {"t"});
+    }
+  }
   // A general Lagrangian replaces the mechanical fields (mass, damping, potential, force).
   const auto* lagrangian = r.find("model", "lagrangian");
   if (lagrangian) {
@@ -457,6 +473,13 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     }
     p.alpha = beta / 2.0;
   }
+  if (p.alpha > 0.0 && p.alpha < kMinPositiveAlpha) {
+    r.fail(alpha ? "model.alpha" : "model.damping_order",
+           "= " + format_value(alpha ? p.alpha : 2.0 * p.alpha) + " is positive but below " +
+               format_value(alpha ? kMinPositiveAlpha : 2.0 * kMinPositiveAlpha) +
+               ": so small an order differs from 0 (D^0 x = x) by less than 1e-10 relative, and "
+               "its memory weights approach the subnormal range; use 0");
+  }
   if (const auto* n = r.find("model", "convention")) {
     p.convention = r.string(*n, "model.convention");
     if (p.convention != "caputo" && p.convention != "riemann-liouville") {
@@ -493,19 +516,6 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
         r.required("model", "potential", "U as a formula in x1..xd and t, or a [model.chain]"),
         "model.potential");
     check_expression(r, "model.potential", p.potential, names);
-  }
-  if (const auto* n = r.find("model", "force")) {
-    if (!n->is_array()) r.fail("model.force", "must be an array of d formulas in t");
-    const auto& a = *n->as_array();
-    if (!a.empty() && static_cast<Eigen::Index>(a.size()) != p.dim) {  // [] means no force
-      r.fail("model.force", "has " + std::to_string(a.size()) + " components, model.dim is " +
-                                std::to_string(p.dim));
-    }
-    for (std::size_t i = 0; i < a.size(); ++i) {
-      const std::string key = "model.force[" + std::to_string(i + 1) + "]";
-      p.force.push_back(r.string(a[i], key));
-      check_expression(r, key, p.force.back(), {"t"});
-    }
   }
 
   // [initial] (optional when the file poses a boundary value problem)
@@ -776,9 +786,24 @@ ProblemSpec load_problem(const std::filesystem::path& file,
                          std::span<const std::string> overrides) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw ProblemFileError(file.string() + ": cannot open the problem file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse_problem(text.str(), file.string(), overrides);
+  // Read at most kMaxProblemFileBytes + 1: a device or pipe without end (/dev/zero) must not be
+  // read forever, and no problem file is near the limit (the largest example is a few kB; a dense
+  // 1000 × 1000 matrix written out is about 20 MB).
+  constexpr std::size_t kMaxProblemFileBytes = 64u << 20;
+  std::string text;
+  std::array<char, 1 << 16> chunk{};
+  while (in && text.size() <= kMaxProblemFileBytes) {
+    in.read(chunk.data(), static_cast<std::streamsize>(chunk.size()));
+    text.append(chunk.data(), static_cast<std::size_t>(in.gcount()));
+  }
+  if (in.bad()) throw ProblemFileError(file.string() + ": cannot read the problem file");
+  if (text.size() > kMaxProblemFileBytes) {
+    throw ProblemFileError(file.string() + ": is larger than " +
+                           std::to_string(kMaxProblemFileBytes >> 20) +
+                           " MiB, the limit for a problem file (a large model belongs in "
+                           "[model.chain] or the C++ or Python API, not in the text)");
+  }
+  return parse_problem(text, file.string(), overrides);
 }
 
 std::string_view default_problem_toml() {

@@ -138,6 +138,11 @@ void validate(const MechanicalModel& model) {
          " is outside [0, 1] (alpha is the Lagrangian order; the damping order 2*alpha must lie "
          "in [0, 2])");
   }
+  if (model.alpha > 0.0 && model.alpha < kMinPositiveAlpha) {
+    fail("model.alpha = " + fmt(model.alpha) + " is positive but below " + fmt(kMinPositiveAlpha) +
+         ": so small an order differs from alpha = 0 (D^0 x = x) by less than 1e-10 relative, and "
+         "its memory weights approach the subnormal range; use alpha = 0");
+  }
   if (model.convention != Convention::kCaputo &&
       model.convention != Convention::kRiemannLiouville) {
     fail("model.convention has an unknown value");

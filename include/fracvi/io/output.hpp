@@ -30,9 +30,10 @@ nlohmann::json json_number(double v);
 nlohmann::json json_row(const RowMatrixXd& m, Eigen::Index row);
 /// Appends v with 17 significant digits (enough to round-trip every double).
 void append_csv_number(std::string& out, double v);
-/// Writes `content` to file.tmp and renames it to `file`, so that a crash never leaves a
-/// half-written file under the final name. Throws OutputError on I/O failure (naming the file and
-/// the system's reason) after removing the temporary.
+/// Writes `content` to a temporary beside `file` (file.tmp.<pid>.<n>: unique, so that concurrent
+/// writers never share one) and renames it to `file`, so that a crash never leaves a half-written
+/// file under the final name. Throws OutputError on I/O failure (naming the file and the system's
+/// reason) after removing the temporary.
 void write_file_atomically(const std::filesystem::path& file, const std::string& content);
 /// Same, with the content streamed by `write` (a large trajectory is never held as one string).
 void write_file_atomically(const std::filesystem::path& file,
@@ -51,15 +52,35 @@ class OutputError : public std::runtime_error {
 /// writes is removed again.
 void prepare_output_directory(const std::filesystem::path& dir);
 
+/// An exclusive claim on an output directory for as long as it lives (an advisory flock on
+/// `<dir>/.fracvi.lock`, removed again on release): a second process that claims the same
+/// directory gets OutputError "<dir>: in use by another fracvi run (pid N) …" at once, instead of
+/// the two runs interleaving their files (issue 14: two runs into one directory left one run's
+/// trajectory beside the other's summary). Claims by the same process nest (the CLI claims the
+/// directory before the run, write_run_output() again while writing).
+class OutputLock {
+ public:
+  explicit OutputLock(const std::filesystem::path& dir);
+  ~OutputLock();
+  OutputLock(OutputLock&& other) noexcept : key_(std::move(other.key_)) { other.key_.clear(); }
+  OutputLock& operator=(OutputLock&&) = delete;
+  OutputLock(const OutputLock&) = delete;
+  OutputLock& operator=(const OutputLock&) = delete;
+
+ private:
+  std::string key_;  // the lock file's path; empty when moved from
+};
+
 /// summary.json's content: status, message, steps, final state, diagnostics, statistics and the
 /// fully resolved problem (so the run can be reproduced from its output).
 nlohmann::json make_summary(const ProblemSpec& spec, const Solution& solution);
 
-/// Writes trajectory.csv (header `t,x1..xd,v1..vd,energy,dissipated,balance`, one line per
-/// stored row of the solution — every save_every-th step and the last computed one, as the
-/// integrator kept them — 17 significant digits), summary.json and
-/// problem.toml into `dir` (created if needed). Files are written to temporaries and renamed, so
-/// a crash never leaves a half-written file under the final name.
+/// Writes trajectory.csv (header `t,x1..xd,v1..vd,energy,dissipated,balance`, one line per stored
+/// row of the solution — every save_every-th step and the last computed one, as the integrator
+/// kept them — 17 significant digits), problem.toml and, last, summary.json into `dir` (created
+/// if needed), under an OutputLock of `dir`. An earlier summary.json is removed first, so that a
+/// directory with a summary.json holds one complete run. Files are written to temporaries and
+/// renamed, so a crash never leaves a half-written file under the final name.
 void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
                       const Solution& solution);
 
