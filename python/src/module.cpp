@@ -471,6 +471,8 @@ void bind(py::module_& m) {
       .def_readonly("newton_max_iterations", &ProblemSpec::newton_max_iterations)
       .def_readonly("history", &ProblemSpec::history)
       .def_readonly("history_tolerance", &ProblemSpec::history_tolerance)
+      .def_readonly("abs_tolerance", &ProblemSpec::abs_tolerance)
+      .def_readonly("rel_tolerance", &ProblemSpec::rel_tolerance)
       .def_readonly("linear_solver", &ProblemSpec::linear_solver)
       .def_readonly("load", &ProblemSpec::load)
       .def_readonly("threads", &ProblemSpec::threads)

@@ -42,6 +42,7 @@
 #include "fracvi/solve/midpoint_newton.hpp"
 #include "mass_solver.hpp"
 #include "mirror_run.hpp"
+#include "power_differences.hpp"
 #include "scheme_rows.hpp"
 
 namespace fracvi::internal {
@@ -49,13 +50,6 @@ namespace fracvi::internal {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-// (k + 1)^p − k^p without the cancellation of the direct formula for large k.
-double forward_difference_of_power(std::size_t k, double p) {
-  if (k == 0) return 1.0;
-  const double kk = static_cast<double>(k);
-  return std::pow(kk, p) * std::expm1(p * std::log1p(1.0 / kk));
-}
 
 class TrapezoidalMidpointStepper final : public Stepper {
  public:

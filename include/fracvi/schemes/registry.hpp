@@ -63,6 +63,10 @@ struct SchemeInfo {
   CqScheme momentum_quadrature = CqScheme::kGrunwaldLetnikov;
   /// method.load = "moments" (ForcingLoad::kMoments) is available.
   bool forcing_moments = false;
+  /// The step is chosen by an error controller from method.abs_tolerance and
+  /// method.rel_tolerance (dopri5); the grid step h only samples its dense output, so the error
+  /// follows the tolerances and the declared order is the order in the tolerance, not in h.
+  bool adaptive = false;
   std::string_view applies_to;      ///< where it applies, in words ("every model", "2α = 1")
   std::string_view stability_rule;  ///< the stability bound in words
   /// The order the scheme reaches on smooth solutions of this model.

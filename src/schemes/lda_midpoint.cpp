@@ -1,0 +1,280 @@
+// lda-midpoint: the discrete Lagrange–d'Alembert principle (Marsden–West 2001, §3.2) with the
+// midpoint discrete Lagrangian L_d = h L(x̄_k, Δ_k/h) and the damping as a discrete force at the
+// midpoint, f_d^± = −(h/2) F_{k+½} (docs/theory/baselines.md §2):
+//
+//   M Δ_k/h + (h/2)(∇U_f(x̄_k, t_{k+½}) + F_{k+½}) = p_k,   p_{k+1} = 2MΔ_k/h − p_k.
+//
+// F_{k+½} is the damping force at the midpoint: R Δ_k/h for 2α = 1; for fractional orders the
+// average of the trapezoidal (Tustin) CQ at the two nodes, F_{k+½} = ½(T_k + T_{k+1}),
+// T_j = R h^{−2α} Σ_m ω_m x̃_{j−m}, δ(ζ) = 2(1 − ζ)/(1 + ζ). Its generating function on the node
+// sequence is 2^{2α−1}(1 + ζ)^{1−2α}(1 − ζ)^{2α} (ζ the shift to the previous node), evaluated as
+// two Grünwald–Letnikov sums like fvi-midpoint's memory (which is the same formula on midpoint
+// values; docs/theory/fvi_midpoint.md): the two schemes differ only in where the memory samples x,
+// and for 2α = 1 this one is R Δ_k/h exactly ((1 + ζ)/2 · δ(ζ) = 1 − ζ).
+// x = P + x̃, P(t) = x_0 + (t − t_0) v_0 as in fvi-midpoint; P's force enters as its exact cell
+// average (so that its impulse is exact). Not variational in the restricted sense (no mirror),
+// but the discrete energy balance is exact for quadratic U: E_{k+1} − E_k = −(F_{k+½} − f)·Δ_k.
+#include <boost/math/special_functions/gamma.hpp>
+#include <cmath>
+#include <limits>
+#include <memory>
+
+#include "forcing_moments.hpp"
+#include "fracvi/fractional/convolution_quadrature.hpp"
+#include "fracvi/memory/history.hpp"
+#include "fracvi/schemes/stepper.hpp"
+#include "fracvi/solve/midpoint_newton.hpp"
+#include "mass_solver.hpp"
+#include "power_differences.hpp"
+#include "scheme_rows.hpp"
+
+namespace fracvi::internal {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+class LdaMidpointStepper final : public Stepper {
+ public:
+  LdaMidpointStepper(const InitialValueProblem& problem, const IntegratorOptions& options)
+      : problem_(problem),
+        beta_(problem.model.damping_order()),
+        d_(problem.model.dimension()),
+        h_(problem.step_size()),
+        damped_(!problem.model.is_undamped()),
+        u_time_dependent_(problem.model.potential && problem.model.potential->is_time_dependent()),
+        diagnostics_(options.diagnostics),
+        midpoint_force_(problem, options.load),
+        current_weight_(std::pow(2.0, beta_ - 1.0)),  // ω̂_0
+        mass_(problem.model.mass.symmetric_part()),
+        damping_(problem.model.damping.symmetric_part()),
+        force_matrix_(damping_.scaled(std::pow(h_, -beta_))),
+        mass_solver_(mass_, force_matrix_, options.linear_solver),
+        newton_matrix_(
+            damped_ ? linear_combination(mass_, 0.5 * h_ * h_ * current_weight_, force_matrix_)
+                    : mass_),
+        newton_(newton_matrix_, h_, problem.model.potential.get(), options.newton, problem.t0,
+                options.linear_solver) {
+    const bool caputo = problem.model.convention == Convention::kCaputo;
+    // Φ(τ) = ∫_0^τ D^{2α} P per unit R (as fvi-midpoint): P's cell-average force R ΔΦ/h.
+    split_ = damped_ && beta_ > 0.0;
+    if (split_ && beta_ < 2.0 && !(caputo && beta_ > 1.0)) {
+      phi_v_ = std::pow(h_, 2.0 - beta_) / boost::math::tgamma(3.0 - beta_) / h_;
+      pv_ = 2.0 - beta_;
+    }
+    if (split_ && !caputo && beta_ < 1.0) {
+      phi_x_ = std::pow(h_, 1.0 - beta_) / boost::math::tgamma(2.0 - beta_) / h_;
+      px_ = 1.0 - beta_;
+    }
+    for (Eigen::VectorXd* vec : {&x_cur_, &x_next_, &v_cur_, &p_, &u_, &base_, &g_, &g_poly_, &s1_,
+                                 &part_, &sum_, &rhs_, &mid_, &dx_, &r_x0_, &r_v0_, &f_mid_}) {
+      vec->setZero(d_);
+    }
+    x_cur_ = problem.x0;
+    v_cur_ = problem.v0;
+    mass_.multiply(problem.v0, p_);
+    if (damped_) {
+      auto make = [&](double order) -> std::unique_ptr<History> {
+        if (order == 0.0) return nullptr;
+        auto history =
+            make_history(options.history, {CqScheme::kGrunwaldLetnikov, order, /*lag=*/1}, d_,
+                         problem.steps + 2, options.history_tolerance);
+        history->set_threads(options.threads);
+        return history;
+      };
+      difference_ = make(beta_);
+      average_ = make(1.0 - beta_);
+      damping_.multiply(problem.x0, r_x0_);
+      damping_.multiply(problem.v0, r_v0_);
+      // u_0 = x̃_0 (0 after the split).
+      u_ = problem.x0;
+      if (split_) u_ -= problem.x0;
+      known_memory(0);
+      push_memory(0);
+    }
+    work_ = supplied_ = diagnostics_ ? 0.0 : kNaN;
+  }
+
+  [[nodiscard]] const Eigen::VectorXd& position() const override { return x_cur_; }
+  [[nodiscard]] const Eigen::VectorXd& velocity() const override { return v_cur_; }
+  [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
+  [[nodiscard]] double work() const override { return work_; }
+  [[nodiscard]] double supplied_work() const override { return supplied_; }
+  [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
+  [[nodiscard]] std::size_t history_bytes() const override {
+    return (difference_ ? difference_->memory_bytes() : 0) +
+           (average_ ? average_->memory_bytes() : 0);
+  }
+
+ private:
+  // The known part of the node-averaged memory at node j: s1 = Σ_{m≥1} c^{(β)}_m u_{j−m} and
+  // sum = 2^{β−1}(s1 + (−1)^j Σ_{m≥1} c^{(1−β)}_m z_{j−m}), z_i = (−1)^i (u_i + s1_i), so that
+  // F_{j−½} = R'(ω̂_0 u_j + sum) (+ P's force).
+  void known_memory(std::size_t j) {
+    s1_.setZero();
+    sum_.setZero();
+    if (j == 0) return;
+    if (difference_) difference_->sum(s1_);
+    if (average_) {
+      average_->sum(part_);
+      sum_ = (j % 2 == 0 ? 1.0 : -1.0) * part_;
+    }
+    sum_ = current_weight_ * (sum_ + s1_);
+  }
+  // After u_j is known (uses s1 of known_memory(j)).
+  void push_memory(std::size_t j) {
+    if (difference_) difference_->push(u_);
+    if (average_) {
+      part_ = u_ + s1_;
+      if (j % 2 == 1) part_ = -part_;
+      average_->push(part_);
+    }
+  }
+  // G^P_k = R (Φ(t_{k+1} − t_0) − Φ(t_k − t_0))/h.
+  void polynomial_force(std::size_t k, Eigen::VectorXd& out) const {
+    out.setZero();
+    if (phi_v_ != 0.0) out += (phi_v_ * forward_difference_of_power(k, pv_)) * r_v0_;
+    if (phi_x_ != 0.0) out += (phi_x_ * forward_difference_of_power(k, px_)) * r_x0_;
+  }
+
+  Status advance() override {
+    const std::size_t k = k_;
+    const Eigen::VectorXd& xk = x_cur_;
+    const double t_half = problem_.t0 + (static_cast<double>(k) + 0.5) * h_;
+    const Eigen::VectorXd* f_ptr = nullptr;
+    if (problem_.model.forcing) {
+      midpoint_force_(k, t_half, f_mid_);
+      f_ptr = &f_mid_;
+    }
+    // F_{k+½} = R'(ω̂_0 u_{k+1} + sum) + G^P_k with u_{k+1} = u_k + Δ − h v_0 (split): the part
+    // without Δ is `base`, the ω̂_0 R'Δ part sits in Newton's matrix.
+    rhs_ = h_ * p_;
+    if (damped_) {
+      known_memory(k + 1);
+      base_ = u_;
+      if (split_) base_ -= h_ * problem_.v0;
+      base_ = current_weight_ * base_ + sum_;
+      force_matrix_.multiply(base_, g_);
+      polynomial_force(k, g_poly_);
+      g_ += g_poly_;
+      rhs_ -= (0.5 * h_ * h_) * g_;
+    }
+    if (k == 0) dx_ = h_ * problem_.v0;  // predictor; afterwards the previous increment
+    const NewtonReport report = newton_.solve(xk, t_half, rhs_, f_ptr, dx_);
+    set_iterations(report.iterations);
+    if (report.status == Status::kNonFinite) {
+      return fail(Status::kNonFinite, "non-finite Newton residual or iterate");
+    }
+    if (report.singular) {
+      return fail(Status::kNewtonFailure,
+                  "the Newton matrix M + (h^2/2) w0 h^-2alpha R + (h^2/4) Hess U could not be "
+                  "factored (singular)");
+    }
+    if (report.status == Status::kNewtonFailure) {
+      return fail(Status::kNewtonFailure,
+                  "Newton did not converge within %d iterations (last correction %.3e > "
+                  "tolerance %.3e)",
+                  report.iterations, report.correction, report.tolerance);
+    }
+    x_next_ = xk + dx_;
+    if (!x_next_.allFinite()) return fail(Status::kNonFinite, "non-finite position");
+    if (damped_) {
+      // The full F_{k+½} (for the energy account) and u_{k+1} into the memory.
+      force_matrix_.multiply(dx_, mid_);
+      g_ += current_weight_ * mid_;
+      u_ += dx_;
+      if (split_) u_ -= h_ * problem_.v0;
+      push_memory(k + 1);
+    }
+    // p_{k+1} = 2MΔ_k/h − p_k (the two discrete Legendre transforms of cell k).
+    mass_.multiply(dx_, mid_);
+    p_ = mid_ * (2.0 / h_) - p_;
+    if (diagnostics_) {
+      // E_{k+1} − E_k = −(F_{k+½} − f)·Δ_k for quadratic U (midpoint rule), plus ∂_t U.
+      if (damped_) work_ += g_.dot(dx_);
+      if (f_ptr != nullptr) {
+        const double fw = f_mid_.dot(dx_);
+        work_ -= fw;
+        supplied_ += fw;
+      }
+      if (u_time_dependent_) {
+        mid_ = xk + 0.5 * dx_;
+        const double du =
+            problem_.model.potential->value(mid_, problem_.time(static_cast<double>(k + 1))) -
+            problem_.model.potential->value(mid_, problem_.time(static_cast<double>(k)));
+        work_ -= du;
+        supplied_ += du;
+      }
+    }
+    mass_solver_.inverse(p_, v_cur_);
+    if (!v_cur_.allFinite()) return fail(Status::kNonFinite, "non-finite velocity");
+    x_cur_.swap(x_next_);
+    ++k_;
+    return Status::kSuccess;
+  }
+
+  const InitialValueProblem& problem_;
+  double beta_;
+  Eigen::Index d_;
+  double h_;
+  bool damped_, u_time_dependent_, diagnostics_;
+  MidpointForce midpoint_force_;
+  double current_weight_;
+  bool split_ = false;
+  double phi_v_ = 0.0, pv_ = 0.0, phi_x_ = 0.0, px_ = 0.0;
+  ModelMatrix mass_, damping_, force_matrix_;
+  MassSolver mass_solver_;
+  ModelMatrix newton_matrix_;  // M + (h²/2) ω̂_0 R'
+  MidpointNewton newton_;
+  std::unique_ptr<History> difference_, average_;
+  std::size_t k_ = 0;
+  Eigen::VectorXd x_cur_, x_next_, v_cur_, p_, u_, base_, g_, g_poly_, s1_, part_, sum_, rhs_, mid_,
+      dx_, r_x0_, r_v0_, f_mid_;
+  double work_ = 0.0, supplied_ = 0.0;
+};
+
+}  // namespace
+
+const SchemeInfo kLdaMidpoint{
+    .name = "lda-midpoint",
+    .summary =
+        "discrete Lagrange-d'Alembert, midpoint discrete Lagrangian, damping force at the "
+        "midpoint (trapezoidal CQ for fractional orders)",
+    .reference = "Marsden & West, Acta Numerica 2001, 3.2; docs/theory/baselines.md",
+    .order_rule = "2",
+    .stages = 1,
+    .variational = false,
+    .variational_quadrature = std::nullopt,
+    .has_mirror = false,
+    .exact_balance = true,  // the discrete balance E_{k+1} − E_k = −(F_{k+½} − f)·Δ_k
+    .fast_history = true,   // two GL sums (orders 2α and 1 − 2α, lag 1), as fvi-midpoint
+    .momentum_quadrature = CqScheme::kTrapezoidal,
+    .forcing_moments = true,  // method.load = "moments": the cell average of f
+    .applies_to = "0 <= 2alpha < 2",
+    .stability_rule =
+        "stable for every h (implicit damping; the Tustin image of the continuous "
+        "characteristic equation)",
+    .declared_order = [](const MechanicalModel&) { return 2; },
+    .applicability =
+        [](const InitialValueProblem& problem) {
+          if (problem.model.damping_order() < 2.0 || problem.model.is_undamped()) {
+            return std::string();
+          }
+          return std::string(
+              "model.alpha = 1 (2alpha = 2) is outside 0 <= 2alpha < 2: the trapezoidal damping "
+              "of order 2 amplifies round-off in the momenta; use fvi-gl or fvi-bdf2");
+        },
+    .stability =
+        [](const InitialValueProblem&) {
+          return StabilityBound{.stable = true,
+                                .largest_step = std::numeric_limits<double>::infinity(),
+                                .sharp = true,
+                                .rule = "implicit damping: stable for every h"};
+        },
+    .make_stepper = [](const InitialValueProblem& problem,
+                       const IntegratorOptions& options) -> std::unique_ptr<Stepper> {
+      return std::make_unique<LdaMidpointStepper>(problem, options);
+    },
+};
+
+}  // namespace fracvi::internal
