@@ -22,13 +22,15 @@ LinearTestProblem linear_test_problem(const InitialValueProblem& problem) {
     u->hessian(problem.x0, problem.t0, test.stiffness);
     test.stiffness = 0.5 * (test.stiffness + test.stiffness.transpose()).eval();
     test.exact = u->has_constant_hessian();
-    // Negative curvature is a physical instability (the pendulum above its pivot), not a
-    // numerical one: only the positive part of K (in the M inner product) enters the bound.
+    // Negative curvature at x_0 (a pendulum started above its pivot) is a physical instability,
+    // not a numerical one, but the trajectory soon meets curvature of about that magnitude with
+    // the other sign: K enters with the magnitudes of its modes, K = MΦ|Λ|ΦᵀM (a linear
+    // problem's K is positive semidefinite and unchanged).
     const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> modes(test.stiffness,
                                                                           test.mass);
     if (modes.eigenvalues().minCoeff() < 0.0) {
       const Eigen::MatrixXd phi_m = test.mass * modes.eigenvectors();  // K = MΦΛΦᵀM
-      test.stiffness = phi_m * modes.eigenvalues().cwiseMax(0.0).asDiagonal() * phi_m.transpose();
+      test.stiffness = phi_m * modes.eigenvalues().cwiseAbs().asDiagonal() * phi_m.transpose();
     }
   }
   return test;

@@ -19,8 +19,9 @@
 namespace fracvi::internal {
 
 /// The linear test problem M x'' + R D^{2α} x + K x = 0 of `problem`: the symmetric parts of M and
-/// R and K = ∇²U(x_0, t_0) (zero without a potential). `exact` is false when U is not quadratic
-/// (the bound is then that of the linearisation at x_0).
+/// R and K = ∇²U(x_0, t_0) (zero without a potential; negative curvature enters with its
+/// magnitude). `exact` is false when U is not quadratic (the bound is then that of the
+/// linearisation at x_0).
 struct LinearTestProblem {
   Eigen::MatrixXd mass, damping, stiffness;
   bool exact = true;

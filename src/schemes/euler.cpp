@@ -255,6 +255,12 @@ StabilityBound explicit_euler_bound(const InitialValueProblem& problem) {
       " (1-xi)^(2alpha) R] in |xi| <= 1 (K = Hess U(x0); forward Euler: no stable h without "
       "damping)";
   const double h0 = problem.step_size();
+  // Without damping the roots ξ^{−1} = 1 ± ih√(k/m) lie outside the unit circle for every h: the
+  // argument principle on |ξ| = 1 − 1e-7 would miss them only because they approach the circle
+  // as h → 0 (growth 1 + h²k/(2m) per step), so this case is settled exactly.
+  if (problem.model.is_undamped() && !test.stiffness.isZero(0.0)) {
+    return step_bound(problem, 0.0, true, what);
+  }
   if (d <= kMaxCharacteristicDimension) {
     const double h_star =
         largest_stable_step(stable_for(test.mass, test.stiffness, test.damping), h0);

@@ -14,7 +14,6 @@
 // x = P + x̃, P(t) = x_0 + (t − t_0) v_0 as in fvi-midpoint; P's force enters as its exact cell
 // average (so that its impulse is exact). Not variational in the restricted sense (no mirror),
 // but the discrete energy balance is exact for quadratic U: E_{k+1} − E_k = −(F_{k+½} − f)·Δ_k.
-#include <boost/math/special_functions/gamma.hpp>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -25,8 +24,8 @@
 #include "fracvi/schemes/stepper.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
 #include "mass_solver.hpp"
-#include "power_differences.hpp"
 #include "scheme_rows.hpp"
+#include "trapezoid_memory.hpp"
 
 namespace fracvi::internal {
 
@@ -46,6 +45,7 @@ class LdaMidpointStepper final : public Stepper {
         diagnostics_(options.diagnostics),
         midpoint_force_(problem, options.load),
         current_weight_(std::pow(2.0, beta_ - 1.0)),  // ω̂_0
+        polynomial_force_(problem, problem.model.damping.symmetric_part(), h_),
         mass_(problem.model.mass.symmetric_part()),
         damping_(problem.model.damping.symmetric_part()),
         force_matrix_(damping_.scaled(std::pow(h_, -beta_))),
@@ -55,42 +55,22 @@ class LdaMidpointStepper final : public Stepper {
                     : mass_),
         newton_(newton_matrix_, h_, problem.model.potential.get(), options.newton, problem.t0,
                 options.linear_solver) {
-    const bool caputo = problem.model.convention == Convention::kCaputo;
-    // Φ(τ) = ∫_0^τ D^{2α} P per unit R (as fvi-midpoint): P's cell-average force R ΔΦ/h.
-    split_ = damped_ && beta_ > 0.0;
-    if (split_ && beta_ < 2.0 && !(caputo && beta_ > 1.0)) {
-      phi_v_ = std::pow(h_, 2.0 - beta_) / boost::math::tgamma(3.0 - beta_) / h_;
-      pv_ = 2.0 - beta_;
-    }
-    if (split_ && !caputo && beta_ < 1.0) {
-      phi_x_ = std::pow(h_, 1.0 - beta_) / boost::math::tgamma(2.0 - beta_) / h_;
-      px_ = 1.0 - beta_;
-    }
-    for (Eigen::VectorXd* vec : {&x_cur_, &x_next_, &v_cur_, &p_, &u_, &base_, &g_, &g_poly_, &s1_,
-                                 &part_, &sum_, &rhs_, &mid_, &dx_, &r_x0_, &r_v0_, &f_mid_}) {
+    // The memory acts on x − P (TaylorCellForce: P's force as exact cell averages).
+    split_ = polynomial_force_.split();
+    for (Eigen::VectorXd* vec : {&x_cur_, &x_next_, &v_cur_, &p_, &u_, &base_, &g_, &g_poly_, &sum_,
+                                 &rhs_, &mid_, &dx_, &f_mid_}) {
       vec->setZero(d_);
     }
     x_cur_ = problem.x0;
     v_cur_ = problem.v0;
     mass_.multiply(problem.v0, p_);
     if (damped_) {
-      auto make = [&](double order) -> std::unique_ptr<History> {
-        if (order == 0.0) return nullptr;
-        auto history =
-            make_history(options.history, {CqScheme::kGrunwaldLetnikov, order, /*lag=*/1}, d_,
-                         problem.steps + 2, options.history_tolerance);
-        history->set_threads(options.threads);
-        return history;
-      };
-      difference_ = make(beta_);
-      average_ = make(1.0 - beta_);
-      damping_.multiply(problem.x0, r_x0_);
-      damping_.multiply(problem.v0, r_v0_);
-      // u_0 = x̃_0 (0 after the split).
+      // The node-averaged trapezoidal memory over u_j = x̃_j (trapezoid_memory.hpp), from u_0.
+      memory_ = std::make_unique<NodeAveragedTrapezoid>(beta_, d_, problem.steps + 1, options);
       u_ = problem.x0;
       if (split_) u_ -= problem.x0;
-      known_memory(0);
-      push_memory(0);
+      memory_->known(0, sum_);
+      memory_->push(0, u_);
     }
     work_ = supplied_ = diagnostics_ ? 0.0 : kNaN;
   }
@@ -102,41 +82,10 @@ class LdaMidpointStepper final : public Stepper {
   [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
   [[nodiscard]] std::size_t history_bytes() const override {
-    return (difference_ ? difference_->memory_bytes() : 0) +
-           (average_ ? average_->memory_bytes() : 0);
+    return memory_ ? memory_->memory_bytes() : 0;
   }
 
  private:
-  // The known part of the node-averaged memory at node j: s1 = Σ_{m≥1} c^{(β)}_m u_{j−m} and
-  // sum = 2^{β−1}(s1 + (−1)^j Σ_{m≥1} c^{(1−β)}_m z_{j−m}), z_i = (−1)^i (u_i + s1_i), so that
-  // F_{j−½} = R'(ω̂_0 u_j + sum) (+ P's force).
-  void known_memory(std::size_t j) {
-    s1_.setZero();
-    sum_.setZero();
-    if (j == 0) return;
-    if (difference_) difference_->sum(s1_);
-    if (average_) {
-      average_->sum(part_);
-      sum_ = (j % 2 == 0 ? 1.0 : -1.0) * part_;
-    }
-    sum_ = current_weight_ * (sum_ + s1_);
-  }
-  // After u_j is known (uses s1 of known_memory(j)).
-  void push_memory(std::size_t j) {
-    if (difference_) difference_->push(u_);
-    if (average_) {
-      part_ = u_ + s1_;
-      if (j % 2 == 1) part_ = -part_;
-      average_->push(part_);
-    }
-  }
-  // G^P_k = R (Φ(t_{k+1} − t_0) − Φ(t_k − t_0))/h.
-  void polynomial_force(std::size_t k, Eigen::VectorXd& out) const {
-    out.setZero();
-    if (phi_v_ != 0.0) out += (phi_v_ * forward_difference_of_power(k, pv_)) * r_v0_;
-    if (phi_x_ != 0.0) out += (phi_x_ * forward_difference_of_power(k, px_)) * r_x0_;
-  }
-
   Status advance() override {
     const std::size_t k = k_;
     const Eigen::VectorXd& xk = x_cur_;
@@ -150,12 +99,12 @@ class LdaMidpointStepper final : public Stepper {
     // without Δ is `base`, the ω̂_0 R'Δ part sits in Newton's matrix.
     rhs_ = h_ * p_;
     if (damped_) {
-      known_memory(k + 1);
+      memory_->known(k + 1, sum_);
       base_ = u_;
       if (split_) base_ -= h_ * problem_.v0;
       base_ = current_weight_ * base_ + sum_;
       force_matrix_.multiply(base_, g_);
-      polynomial_force(k, g_poly_);
+      polynomial_force_(k, g_poly_);
       g_ += g_poly_;
       rhs_ -= (0.5 * h_ * h_) * g_;
     }
@@ -184,7 +133,7 @@ class LdaMidpointStepper final : public Stepper {
       g_ += current_weight_ * mid_;
       u_ += dx_;
       if (split_) u_ -= h_ * problem_.v0;
-      push_memory(k + 1);
+      memory_->push(k + 1, u_);
     }
     // p_{k+1} = 2MΔ_k/h − p_k (the two discrete Legendre transforms of cell k).
     mass_.multiply(dx_, mid_);
@@ -220,16 +169,16 @@ class LdaMidpointStepper final : public Stepper {
   bool damped_, u_time_dependent_, diagnostics_;
   MidpointForce midpoint_force_;
   double current_weight_;
+  TaylorCellForce polynomial_force_;
   bool split_ = false;
-  double phi_v_ = 0.0, pv_ = 0.0, phi_x_ = 0.0, px_ = 0.0;
   ModelMatrix mass_, damping_, force_matrix_;
   MassSolver mass_solver_;
   ModelMatrix newton_matrix_;  // M + (h²/2) ω̂_0 R'
   MidpointNewton newton_;
-  std::unique_ptr<History> difference_, average_;
+  std::unique_ptr<NodeAveragedTrapezoid> memory_;
   std::size_t k_ = 0;
-  Eigen::VectorXd x_cur_, x_next_, v_cur_, p_, u_, base_, g_, g_poly_, s1_, part_, sum_, rhs_, mid_,
-      dx_, r_x0_, r_v0_, f_mid_;
+  Eigen::VectorXd x_cur_, x_next_, v_cur_, p_, u_, base_, g_, g_poly_, sum_, rhs_, mid_, dx_,
+      f_mid_;
   double work_ = 0.0, supplied_ = 0.0;
 };
 

@@ -363,7 +363,8 @@ class Run(unittest.TestCase):
             (["method.newton_tolerence=1e-9"],
              "fracvi run: <built-in problem>: --set method.newton_tolerence: unknown key (did you "
              "mean 'newton_tolerance'?); valid in [method]: scheme, newton_tolerance, "
-             "newton_max_iterations, history, history_tolerance, linear_solver, load, threads"),
+             "newton_max_iterations, history, history_tolerance, abs_tolerance, rel_tolerance, "
+             "linear_solver, load, threads"),
             (["output.stride=2"],
              "fracvi run: <built-in problem>: --set output.stride: unknown key; valid in [output]: "
              "every"),
