@@ -570,8 +570,9 @@ _BVP_OPTIONS = ("sum", "solver", "tolerance", "raise_on_failure")
 
 def methods():
     """The time-stepping schemes, one dict per scheme (the registry `fracvi methods` prints):
-    name, order (declared, in words), stages, variational, mirror, exact_balance, applies_to,
-    stability (the bound), summary, reference. Pass a name as integrate(..., scheme=NAME)."""
+    name, order (declared, in words), stages, variational, mirror, exact_balance, fast_history,
+    adaptive (the error follows abs_tolerance/rel_tolerance, not h), applies_to, stability (the
+    bound), summary, reference. Pass a name as integrate(..., scheme=NAME)."""
     return _fracvi.methods()
 
 

@@ -692,6 +692,7 @@ void bind(py::module_& m) {
       row["mirror"] = r.mirror;
       row["exact_balance"] = r.exact_balance;
       row["fast_history"] = r.fast_history;
+      row["adaptive"] = r.adaptive;
       row["applies_to"] = r.applies_to;
       row["stability"] = r.stability;
       row["summary"] = r.summary;

@@ -56,7 +56,8 @@ std::vector<SchemeRow> scheme_table() {
     rows.push_back({std::string(info->name), std::string(info->order_rule),
                     std::string(info->applies_to), std::string(info->stability_rule),
                     std::string(info->summary), std::string(info->reference), info->stages,
-                    info->variational, info->has_mirror, info->exact_balance, info->fast_history});
+                    info->variational, info->has_mirror, info->exact_balance, info->fast_history,
+                    info->adaptive});
   }
   return rows;
 }

@@ -401,7 +401,7 @@ class Methods(unittest.TestCase):
         self.assertEqual(names[:2], ["fvi-gl", "fvi-bdf2"])
         for row in rows:
             for key in ("order", "stages", "variational", "mirror", "exact_balance", "fast_history",
-                        "applies_to", "stability", "summary", "reference"):
+                        "adaptive", "applies_to", "stability", "summary", "reference"):
                 self.assertIn(key, row)
         r = run("methods")
         self.assertEqual(r.returncode, 0, r.stderr)

@@ -10,7 +10,8 @@
 //                    against Boost.Odeint dopri5 at 1e-12;
 //   (b) the mirror run reproduces the reversed trajectory to round-off (where has_mirror);
 //   (c) the energy balance is exact to round-off for a quadratic time-independent U, any R, α, f
-//       (where exact_balance), with a nonlinear negative control;
+//       (where exact_balance), with a nonlinear negative control; for the baselines without an
+//       exact balance, its error vanishes at the declared order;
 //   (d) the step loop does not allocate, with a control showing the counter is live;
 //   (e) a failing run (a potential that throws, or turns NaN, after some time) ends with a failure
 //       status and keeps the finite trajectory computed so far;
@@ -480,6 +481,49 @@ TEST_P(SchemeSuite, EnergyBalanceNegativeControlNonlinearPotential) {
               name().c_str(), sol.max_balance_error, balance_tolerance(sol));
   // 1e3: the defect must be visible above round-off, not near it.
   EXPECT_GT(sol.max_balance_error, 1e3 * balance_tolerance(sol));
+}
+
+// (c') A scheme without an exact discrete balance (the baselines: SchemeInfo::variational false,
+// exact_balance false) books W_k as a quadrature of the damping power on the grid
+// (docs/theory/baselines.md): its balance error must then vanish at the scheme's declared order
+// (at least; dopri5's account is a grid quadrature of order 2 whatever its tolerance), so that it
+// is a meaningful consistency check. Quadratic U with forcing, 2α = 1 and 1.5 (Caputo), on the
+// scheme's domain; the fit is over N = 400 … 3200 above the round-off plateau.
+TEST_P(SchemeSuite, EnergyBalanceErrorConvergesForBaselines) {
+  if (info().variational || info().exact_balance) {
+    GTEST_SKIP() << name() << ": checked by the exact-balance tests";
+  }
+  IntegratorOptions options;
+  options.mirror = false;
+  int ran = 0;
+  for (const double alpha : {0.5, 0.75}) {
+    const std::string label = "alpha " + std::to_string(alpha);
+    if (skip_case(label, balance_problem(alpha, Convention::kCaputo, 400))) continue;
+    ++ran;
+    const int declared =
+        info().adaptive
+            ? 2
+            : info().declared_order(balance_problem(alpha, Convention::kCaputo, 400).model);
+    std::vector<double> hs, errors;
+    double scale = 0.0;
+    for (const std::size_t n : {400ul, 800ul, 1600ul, 3200ul}) {
+      const InitialValueProblem p = balance_problem(alpha, Convention::kCaputo, n);
+      const Solution sol = integrate(p, method(), options);
+      ASSERT_TRUE(sol.ok()) << label << ": " << sol.message;
+      hs.push_back(p.step_size());
+      errors.push_back(sol.max_balance_error);
+      scale = std::max(scale, sol.energy.cwiseAbs().maxCoeff());
+    }
+    const test::OrderFit fit = test::fit_order(hs, errors, {.floor = test::round_off_floor(scale)});
+    std::printf("%s", fit.table(name() + ", " + label + ", max |E + W - E0| (declared order " +
+                                std::to_string(declared) + ")")
+                          .c_str());
+    RecordProperty("balance_order_alpha_" + std::to_string(static_cast<int>(100.0 * alpha)),
+                   std::to_string(fit.slope));
+    EXPECT_TRUE(fit.valid) << label;
+    EXPECT_GE(fit.slope, declared - kOrderMargin) << label;
+  }
+  if (ran == 0) GTEST_SKIP() << "no case within the scheme's domain";
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -90,12 +90,13 @@ std::string scheme_names();
 
 /// The registry as text columns, one entry per scheme with the keys name, order, stages,
 /// variational, mirror, exact_balance, applies_to, stability, summary, reference (what
-/// `fracvi methods --json` prints and Python's fracvi.methods() returns, plus fast_history; values
-/// are strings, integers or booleans).
+/// `fracvi methods --json` prints and Python's fracvi.methods() returns, plus fast_history and
+/// adaptive; values are strings, integers or booleans).
 struct SchemeRow {
   std::string name, order, applies_to, stability, summary, reference;
   int stages = 1;
-  bool variational = true, mirror = false, exact_balance = false, fast_history = false;
+  bool variational = true, mirror = false, exact_balance = false, fast_history = false,
+       adaptive = false;
 };
 std::vector<SchemeRow> scheme_table();
 
