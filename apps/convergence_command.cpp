@@ -15,6 +15,7 @@
 #include "fracvi/io/output.hpp"
 #include "fracvi/io/problem_file.hpp"
 #include "fracvi/io/run.hpp"
+#include "fracvi/schemes/registry.hpp"
 #include "plot.hpp"
 
 namespace fracvi::cli {
@@ -105,6 +106,13 @@ Command add_convergence_command(CLI::App& parent) {
     }
     std::printf("least-squares order: %.4f (declared %d)\n", study.fitted_order,
                 study.declared_order);
+    if (const SchemeInfo* info = find_scheme(spec.scheme); info != nullptr && info->adaptive) {
+      // The grid only samples an adaptive scheme's dense output: no order in h is expected.
+      std::printf(
+          "note: %s is adaptive; its error follows method.abs_tolerance and rel_tolerance, not h "
+          "(vary those to see its order)\n",
+          spec.scheme.c_str());
+    }
 
     const nlohmann::json meta{{"problem", to_json(spec)},
                               {"reference", study.reference},

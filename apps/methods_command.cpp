@@ -31,6 +31,7 @@ Command add_methods_command(CLI::App& parent) {
                        {"mirror", r.mirror},
                        {"exact_balance", r.exact_balance},
                        {"fast_history", r.fast_history},
+                       {"adaptive", r.adaptive},
                        {"applies_to", r.applies_to},
                        {"stability", r.stability},
                        {"summary", r.summary},

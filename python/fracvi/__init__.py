@@ -240,6 +240,8 @@ class Problem:
     newton_max_iterations = property(lambda self: self._spec.newton_max_iterations)
     history = property(lambda self: self._spec.history, doc='"auto", "direct" or "fast"')
     history_tolerance = property(lambda self: self._spec.history_tolerance)
+    abs_tolerance = property(lambda self: self._spec.abs_tolerance)
+    rel_tolerance = property(lambda self: self._spec.rel_tolerance)
     linear_solver = property(lambda self: self._spec.linear_solver,
                              doc='method.linear_solver: "auto", "dense", "banded" or "sparse"')
     load = property(lambda self: self._spec.load,
@@ -351,7 +353,8 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostic
     """Integrates `problem` (a Problem, a dict, or a TOML path/text) to its final time.
 
     Every key of the problem's [method] and [output] sections (problem_schema(): scheme,
-    newton_tolerance (relative), newton_max_iterations, history_tolerance, linear_solver ("auto",
+    newton_tolerance (relative), newton_max_iterations, history_tolerance, abs_tolerance and rel_tolerance (the
+    adaptive schemes' error tolerances), linear_solver ("auto",
     "dense", "banded", "sparse"), load ("pointwise" or "moments": the forcing at the
     quadrature points or its exact moments), error_estimate ("richardson": the Solution's
     error_estimate from companion runs with N/2 and N/4 steps, about 0.75 of the cost more; or
@@ -582,8 +585,9 @@ _BVP_OPTIONS = ("sum", "solver", "tolerance", "raise_on_failure")
 
 def methods():
     """The time-stepping schemes, one dict per scheme (the registry `fracvi methods` prints):
-    name, order (declared, in words), stages, variational, mirror, exact_balance, applies_to,
-    stability (the bound), summary, reference. Pass a name as integrate(..., scheme=NAME)."""
+    name, order (declared, in words), stages, variational, mirror, exact_balance, fast_history,
+    adaptive (the error follows abs_tolerance/rel_tolerance, not h), applies_to, stability (the
+    bound), summary, reference. Pass a name as integrate(..., scheme=NAME)."""
     return _fracvi.methods()
 
 

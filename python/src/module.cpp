@@ -479,6 +479,8 @@ void bind(py::module_& m) {
       .def_readonly("newton_max_iterations", &ProblemSpec::newton_max_iterations)
       .def_readonly("history", &ProblemSpec::history)
       .def_readonly("history_tolerance", &ProblemSpec::history_tolerance)
+      .def_readonly("abs_tolerance", &ProblemSpec::abs_tolerance)
+      .def_readonly("rel_tolerance", &ProblemSpec::rel_tolerance)
       .def_readonly("linear_solver", &ProblemSpec::linear_solver)
       .def_readonly("load", &ProblemSpec::load)
       .def_readonly("error_estimate", &ProblemSpec::error_estimate)
@@ -703,6 +705,7 @@ void bind(py::module_& m) {
       row["mirror"] = r.mirror;
       row["exact_balance"] = r.exact_balance;
       row["fast_history"] = r.fast_history;
+      row["adaptive"] = r.adaptive;
       row["applies_to"] = r.applies_to;
       row["stability"] = r.stability;
       row["summary"] = r.summary;

@@ -236,7 +236,7 @@ def test_integrate_refuses_a_boundary_value_problem_with_the_cli_message(cli, wr
 def test_option_errors():
     problem = fracvi.Problem.from_toml(MECHANICAL)
     with pytest.raises(TypeError, match="solve_bvp\\(\\) got an unexpected keyword argument "
-                                        "'mirror' \\(valid: every, history, "):
+                                        "'mirror' \\(valid: abs_tolerance, every, history, "):
         fracvi.solve_bvp(problem, mirror=True)
     with pytest.raises(ValueError, match="sum = 'both' must be 'extended' or 'printed'"):
         fracvi.solve_bvp(problem, sum="both")

@@ -277,9 +277,10 @@ def test_keywords_are_the_file_keys(tmp_path):
     # solve_bvp()) under its file name (not its C++ name), and lands in that field of the problem.
     rows = [r for r in fracvi.problem_schema() if r["section"] in ("method", "output")]
     values = dict(scheme="fvi-bdf2", newton_tolerance=1e-11, newton_max_iterations=40,
-                  history="direct", history_tolerance=1e-9, linear_solver="dense",
-                  load="pointwise", error_estimate="richardson", tolerance=10.0,
-                  max_steps=123456, threads=1, every=2)
+                  history="direct", history_tolerance=1e-9, abs_tolerance=1e-7,
+                  rel_tolerance=1e-6, linear_solver="dense", load="pointwise",
+                  error_estimate="richardson", tolerance=10.0, max_steps=123456, threads=1,
+                  every=2)
     assert {r["key"] for r in rows} == set(values)
     problem = fracvi.Problem.from_toml(PROBLEM)
     fields = {k: v for k, v in values.items() if k != "history"}  # a run option of integrate()

@@ -33,6 +33,16 @@ void validate(const IntegratorOptions& options) {
         format_number(kMaxHistoryTolerance) +
         "] (per-weight relative accuracy of the fast history)");
   }
+  // Tolerances of the adaptive schemes: positive, not both zero, the relative one above round-off.
+  if (!(options.abs_tolerance >= 0.0 && std::isfinite(options.abs_tolerance))) {
+    throw ValidationError("options.abs_tolerance = " + format_number(options.abs_tolerance) +
+                          " must be >= 0 (absolute error tolerance of the adaptive schemes)");
+  }
+  if (!(options.rel_tolerance >= 1e-15 && options.rel_tolerance < 1.0)) {
+    throw ValidationError("options.rel_tolerance = " + format_number(options.rel_tolerance) +
+                          " must be in [1e-15, 1) (relative error tolerance of the adaptive "
+                          "schemes)");
+  }
   if (options.save_every < 1) {
     throw ValidationError("options.save_every = 0 must be >= 1 (store every n-th step)");
   }

@@ -55,6 +55,8 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   o.newton.max_iterations = spec.newton_max_iterations;
   o.history = *parse_history_kind(spec.history);
   o.history_tolerance = spec.history_tolerance;
+  o.abs_tolerance = spec.abs_tolerance;
+  o.rel_tolerance = spec.rel_tolerance;
   o.linear_solver = *parse_linear_solver(spec.linear_solver);
   o.load = *parse_forcing_load(spec.load);
   o.error_estimate = *parse_error_estimate(spec.error_estimate);

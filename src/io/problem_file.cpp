@@ -620,6 +620,23 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
                                              "accuracy of the fast history)");
     }
   }
+  // The adaptive schemes' tolerances (IntegratorOptions::abs_tolerance, rel_tolerance).
+  if (const auto* n = r.find("method", "abs_tolerance")) {
+    p.abs_tolerance = r.number(*n, "method.abs_tolerance");
+    if (!(p.abs_tolerance >= 0.0 && p.abs_tolerance < 1e300)) {
+      r.fail("method.abs_tolerance", "= " + format_value(p.abs_tolerance) +
+                                         " must be >= 0 (absolute error tolerance of the "
+                                         "adaptive schemes)");
+    }
+  }
+  if (const auto* n = r.find("method", "rel_tolerance")) {
+    p.rel_tolerance = r.number(*n, "method.rel_tolerance");
+    if (!(p.rel_tolerance >= 1e-15 && p.rel_tolerance < 1.0)) {
+      r.fail("method.rel_tolerance", "= " + format_value(p.rel_tolerance) +
+                                         " must be in [1e-15, 1) (relative error tolerance of "
+                                         "the adaptive schemes)");
+    }
+  }
   if (const auto* n = r.find("method", "linear_solver")) {
     p.linear_solver = r.string(*n, "method.linear_solver");
     if (!parse_linear_solver(p.linear_solver)) {

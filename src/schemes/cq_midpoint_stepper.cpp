@@ -1,6 +1,7 @@
 #include "cq_midpoint_stepper.hpp"
 
 #include "mirror_run.hpp"
+#include "power_differences.hpp"
 
 #include <boost/math/special_functions/gamma.hpp>
 #include <cmath>
@@ -119,27 +120,6 @@ void CqMidpointStepper::tilde(const Eigen::Ref<const Eigen::VectorXd>& x, std::s
   if (shift_x0_) out -= problem_.x0;
   if (shift_v0_) out -= (static_cast<double>(i) * h_) * problem_.v0;
 }
-
-namespace {
-
-// (k+1)^p − 2k^p + (k−1)^p for k ≥ 1, without the cancellation of the direct formula for large k:
-// k^p · 2 Σ_{j≥1} binom(p, 2j) k^{−2j} (the series converges geometrically for k ≥ 2).
-double second_difference_of_power(std::size_t k, double p) {
-  if (k == 1) return std::pow(2.0, p) - 2.0;
-  const double u2 = 1.0 / (static_cast<double>(k) * static_cast<double>(k));
-  double binom = 1.0, power = 1.0, sum = 0.0;
-  for (int m = 1; m <= 120; ++m) {
-    binom *= (p - m + 1) / m;  // binom(p, m)
-    if (m % 2 == 1) continue;
-    power *= u2;
-    const double term = binom * power;
-    sum += term;
-    if (std::abs(term) <= 1e-18 * std::abs(sum)) break;
-  }
-  return std::pow(static_cast<double>(k), p) * 2.0 * sum;
-}
-
-}  // namespace
 
 void CqMidpointStepper::add_polynomial_force(std::size_t k, Eigen::VectorXd& s) const {
   // P's force at node k in the x-equation M(x_{k+1} − 2x_k + x_{k−1})/h² + F_k + … = 0 is the

@@ -43,19 +43,13 @@
 #include "mass_solver.hpp"
 #include "mirror_run.hpp"
 #include "scheme_rows.hpp"
+#include "trapezoid_memory.hpp"
 
 namespace fracvi::internal {
 
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-// (k + 1)^p − k^p without the cancellation of the direct formula for large k.
-double forward_difference_of_power(std::size_t k, double p) {
-  if (k == 0) return 1.0;
-  const double kk = static_cast<double>(k);
-  return std::pow(kk, p) * std::expm1(p * std::log1p(1.0 / kk));
-}
 
 class TrapezoidalMidpointStepper final : public Stepper {
  public:
@@ -71,10 +65,8 @@ class TrapezoidalMidpointStepper final : public Stepper {
         u_time_dependent_(problem.model.potential && problem.model.potential->is_time_dependent()),
         diagnostics_(options.diagnostics),
         midpoint_force_(problem, options.load),
-        // The known parts (lag 1) of y_k = Σ_m c^{(β)}_m x̃̄_{k−m} and of Σ_m c^{(1−β)}_m z_{k−m}.
-        difference_{CqScheme::kGrunwaldLetnikov, beta_, /*lag=*/1},
-        average_{CqScheme::kGrunwaldLetnikov, 1.0 - beta_, /*lag=*/1},
         current_weight_(std::pow(2.0, beta_ - 1.0)),  // ω̂_0
+        polynomial_force_(problem, problem.model.damping.symmetric_part(), h_),
         mass_(problem.model.mass.symmetric_part()),
         damping_(problem.model.damping.symmetric_part()),
         force_matrix_(damping_.scaled(std::pow(h_, -beta_))),
@@ -84,31 +76,15 @@ class TrapezoidalMidpointStepper final : public Stepper {
                     : mass_),
         newton_(newton_matrix_, h_, problem.model.potential.get(), options.newton, problem.t0,
                 options.linear_solver) {
-    const bool caputo = problem.model.convention == Convention::kCaputo;
-    // x = P + x̃ for β > 0 (D^0 is the identity: nothing to split). Φ(τ) = ∫_0^τ D^β P per unit
-    // R, so that P's cell-average force is R (Φ(τ_{k+1}) − Φ(τ_k))/h:
-    //   v_0 term: D^β τ = τ^{1−β}/Γ(2−β) → Φ = τ^{2−β}/Γ(3−β) (0 < β < 2; none for Caputo β > 1);
-    //   x_0 term: Riemann–Liouville, 0 < β < 1: D^β 1 = τ^{−β}/Γ(1−β) → Φ = τ^{1−β}/Γ(2−β).
-    split_ = damped_ && beta_ > 0.0;
-    if (split_ && beta_ < 2.0 && !(caputo && beta_ > 1.0)) {
-      phi_v_ = std::pow(h_, 2.0 - beta_) / boost::math::tgamma(3.0 - beta_) / h_;
-      pv_ = 2.0 - beta_;
-    }
-    if (split_ && !caputo && beta_ < 1.0) {
-      phi_x_ = std::pow(h_, 1.0 - beta_) / boost::math::tgamma(2.0 - beta_) / h_;
-      px_ = 1.0 - beta_;
-    }
+    // x = P + x̃ for β > 0 (D^0 is the identity: nothing to split); P's force as exact cell
+    // averages (TaylorCellForce, trapezoid_memory.hpp).
+    split_ = polynomial_force_.split();
     for (Eigen::VectorXd* vec :
-         {&x_cur_,       &x_next_, &v_cur_, &p_,    &p_next_, &g_tilde_, &g_total_,   &g_poly_,
-          &g_poly_prev_, &g_hat_,  &q_,     &sum_,  &y_,      &part_,    &mid_tilde_, &rhs_,
-          &mid_,         &dx_,     &tmp_,   &r_x0_, &r_v0_,   &x_first_, &f_mid_}) {
+         {&x_cur_, &x_next_, &v_cur_, &p_, &p_next_, &g_tilde_, &g_total_, &g_poly_, &g_poly_prev_,
+          &g_hat_, &q_, &sum_, &mid_tilde_, &rhs_, &mid_, &dx_, &tmp_, &x_first_, &f_mid_}) {
       vec->setZero(d_);
     }
-    if (damped_) {
-      make_histories(difference_history_, average_history_);
-      damping_.multiply(problem.x0, r_x0_);
-      damping_.multiply(problem.v0, r_v0_);
-    }
+    if (damped_) memory_ = make_memory();
     x_cur_ = problem.x0;
     v_cur_ = problem.v0;
     mass_.multiply(problem.v0, p_);
@@ -123,8 +99,7 @@ class TrapezoidalMidpointStepper final : public Stepper {
   [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
   [[nodiscard]] std::size_t history_bytes() const override {
-    return (difference_history_ ? difference_history_->memory_bytes() : 0) +
-           (average_history_ ? average_history_->memory_bytes() : 0);
+    return memory_ ? memory_->memory_bytes() : 0;
   }
   [[nodiscard]] double mirror_error(const RowMatrixXd& x,
                                     std::span<const std::size_t> steps) const override;
@@ -132,46 +107,10 @@ class TrapezoidalMidpointStepper final : public Stepper {
  private:
   Status advance() override;
 
-  // The two lag-1 histories; one whose weights beyond lag 0 all vanish (order 0) is left null.
-  void make_histories(std::unique_ptr<History>& difference,
-                      std::unique_ptr<History>& average) const {
-    auto make = [&](const ConvolutionQuadrature& q) -> std::unique_ptr<History> {
-      if (q.order == 0.0) return nullptr;
-      auto history =
-          make_history(options_.history, q, d_, n_steps_ + 1, options_.history_tolerance);
-      history->set_threads(options_.threads);
-      return history;
-    };
-    difference = make(difference_);
-    average = make(average_);
-  }
-  // The known part of the node-averaged memory at midpoint index j (j = 0, 1, … in the order of
-  // the pushes): s1 = Σ_{m≥1} c^{(β)}_m x̃̄_{j−m} (so y_j = x̃̄_j + s1) and
-  // out = 2^{β−1} (s1 + (−1)^j Σ_{m≥1} c^{(1−β)}_m z_{j−m}), z_i = (−1)^i y_i, so that
-  // Ĝ_j = R h^{−β} (ω̂_0 x̃̄_j + out) with ω̂_0 = 2^{β−1} = scale.
-  static void known_memory(const History* difference, const History* average, std::size_t j,
-                           double scale, Eigen::VectorXd& s1, Eigen::VectorXd& part,
-                           Eigen::VectorXd& out) {
-    s1.setZero();
-    out.setZero();
-    if (j == 0) return;
-    if (difference != nullptr) difference->sum(s1);
-    if (average != nullptr) {
-      average->sum(part);
-      out = (j % 2 == 0 ? 1.0 : -1.0) * part;
-    }
-    out = scale * (out + s1);
-  }
-  // After midpoint j is known: x̃̄_j into the difference history, z_j = (−1)^j y_j into the other.
-  static void push_memory(History* difference, History* average, std::size_t j,
-                          const Eigen::VectorXd& mid_tilde, const Eigen::VectorXd& s1,
-                          Eigen::VectorXd& z) {
-    if (difference != nullptr) difference->push(mid_tilde);
-    if (average != nullptr) {
-      z = mid_tilde + s1;
-      if (j % 2 == 1) z = -z;
-      average->push(z);
-    }
+  // The node-averaged trapezoidal memory over the midpoint values x̃̄_0, x̃̄_1, …
+  // (trapezoid_memory.hpp): Ĝ_j = R h^{−β} (ω̂_0 x̃̄_j + known part).
+  [[nodiscard]] std::unique_ptr<NodeAveragedTrapezoid> make_memory() const {
+    return std::make_unique<NodeAveragedTrapezoid>(beta_, d_, n_steps_ + 1, options_);
   }
 
   [[nodiscard]] double half_time(std::size_t i) const {
@@ -187,11 +126,7 @@ class TrapezoidalMidpointStepper final : public Stepper {
     v -= ((static_cast<double>(j) + 0.5) * h_) * problem_.v0;
   }
   // G^P_j = R (Φ(t_{j+1} − t_0) − Φ(t_j − t_0))/h, the cell average of P's damping force.
-  void polynomial_force(std::size_t j, Eigen::VectorXd& out) const {
-    out.setZero();
-    if (phi_v_ != 0.0) out += (phi_v_ * forward_difference_of_power(j, pv_)) * r_v0_;
-    if (phi_x_ != 0.0) out += (phi_x_ * forward_difference_of_power(j, px_)) * r_x0_;
-  }
+  void polynomial_force(std::size_t j, Eigen::VectorXd& out) const { polynomial_force_(j, out); }
 
   const InitialValueProblem& problem_;
   IntegratorOptions options_;
@@ -201,21 +136,19 @@ class TrapezoidalMidpointStepper final : public Stepper {
   double h_;
   bool damped_, has_forcing_, u_time_dependent_, diagnostics_;
   MidpointForce midpoint_force_;  // f at t_{k+½}, or its cell average (method.load)
-  ConvolutionQuadrature difference_, average_;
   double current_weight_;
+  TaylorCellForce polynomial_force_;
   bool split_ = false;
-  double phi_v_ = 0.0, pv_ = 0.0, phi_x_ = 0.0, px_ = 0.0;
 
   ModelMatrix mass_, damping_, force_matrix_;
   MassSolver mass_solver_;
   ModelMatrix newton_matrix_;  // M + (h²/2) ω̂_0 R'
   MidpointNewton newton_;
-  std::unique_ptr<History> difference_history_, average_history_;
+  std::unique_ptr<NodeAveragedTrapezoid> memory_;
 
   std::size_t k_ = 0;
   Eigen::VectorXd x_cur_, x_next_, v_cur_, p_, p_next_, q_, g_tilde_, g_total_, g_hat_, g_poly_,
-      g_poly_prev_, sum_, y_, part_, mid_tilde_, rhs_, mid_, dx_, tmp_, r_x0_, r_v0_, x_first_,
-      f_mid_;
+      g_poly_prev_, sum_, mid_tilde_, rhs_, mid_, dx_, tmp_, x_first_, f_mid_;
   double work_ = 0.0, supplied_ = 0.0;
 };
 
@@ -235,8 +168,7 @@ Status TrapezoidalMidpointStepper::advance() {
   // G_k = 2Ĝ_k − G_{k−1} is needed for the output momentum alone, so its rounding (a neutral,
   // alternating mode of the pair (p, G)) cannot reach the trajectory.
   if (damped_) {
-    known_memory(difference_history_.get(), average_history_.get(), k, current_weight_, y_, part_,
-                 sum_);
+    memory_->known(k, sum_);
     mid_tilde_ = xk;
     subtract_polynomial_midpoint(k, mid_tilde_);
     tmp_ = current_weight_ * mid_tilde_ + sum_;
@@ -280,7 +212,7 @@ Status TrapezoidalMidpointStepper::advance() {
     q_ += (0.5 * h_) * (g_poly_ + g_poly_prev_);
     g_total_ = g_tilde_ + g_poly_;
     g_poly_prev_.swap(g_poly_);
-    push_memory(difference_history_.get(), average_history_.get(), k, mid_tilde_, y_, part_);
+    memory_->push(k, mid_tilde_);
   }
   // The node momentum (right Legendre transform of cell k): p_{k+1} = q_{k+1} − (h/2)G_k.
   p_ = q_;
@@ -320,8 +252,8 @@ double TrapezoidalMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
   struct Damping {
     const TrapezoidalMidpointStepper& self;
     std::size_t n;
-    std::unique_ptr<History> difference, average;
-    Eigen::VectorXd s, s1, part, ytil, poly_a, poly_b;
+    std::unique_ptr<NodeAveragedTrapezoid> memory;
+    Eigen::VectorXd s, ytil, poly_a, poly_b;
     // The midpoint between `lo` and `hi` (midpoint i of y, mirroring x-midpoint N − 1 − i) minus P.
     void mid_tilde(const Eigen::VectorXd& lo, const Eigen::VectorXd& hi, std::size_t i) {
       ytil = 0.5 * (lo + hi);
@@ -329,18 +261,18 @@ double TrapezoidalMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
     }
     void start(const Eigen::VectorXd& y_n, const Eigen::VectorXd& y_n1) {
       if (!self.damped_) return;
-      self.make_histories(difference, average);
+      memory = self.make_memory();
       // Midpoint i of y is the (N − 1 − i)-th of the forward-running memory.
       mid_tilde(y_n1, y_n, n - 1);
-      known_memory(difference.get(), average.get(), 0, self.current_weight_, s1, part, s);
-      push_memory(difference.get(), average.get(), 0, ytil, s1, part);
+      memory->known(0, s);
+      memory->push(0, ytil);
     }
     void known(std::size_t k, const Eigen::VectorXd& y_k, Eigen::VectorXd& out) {
       out.setZero();
       if (!self.damped_) return;
       // R'(ω̂_0 (y_k − P) + S) + ½(G^P_{N−k} + G^P_{N−k−1}): the unknown half Δ/2 of ȳ_{k−1} is
       // in the Newton matrix; node k mirrors x-node N − k.
-      known_memory(difference.get(), average.get(), n - k, self.current_weight_, s1, part, s);
+      memory->known(n - k, s);
       ytil = y_k;
       self.subtract_polynomial_midpoint(n - k, ytil);
       s += self.current_weight_ * ytil;
@@ -352,11 +284,11 @@ double TrapezoidalMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
     void accept(std::size_t k, const Eigen::VectorXd& y_km1, const Eigen::VectorXd& y_k) {
       if (!self.damped_) return;
       mid_tilde(y_km1, y_k, k - 1);
-      push_memory(difference.get(), average.get(), n - k, ytil, s1, part);
+      memory->push(n - k, ytil);
     }
   };
   const Eigen::VectorXd work = Eigen::VectorXd::Zero(d_);
-  Damping damping{*this, n_steps_, nullptr, nullptr, work, work, work, work, work, work};
+  Damping damping{*this, n_steps_, nullptr, work, work, work, work};
   return backward_mirror_run(problem_, options_, mass_, newton_matrix_, h_, x_first_, x_rows, steps,
                              damping);
 }

@@ -12,9 +12,11 @@ namespace fracvi {
 namespace {
 
 // One line per scheme.
-constexpr std::array<const SchemeInfo*, 6> kSchemes{
-    &internal::kFviGl,       &internal::kFviBdf2,     &internal::kFviMidpoint,
-    &internal::kFviLobatto2, &internal::kFviLobatto3, &internal::kFviLobatto4,
+constexpr std::array<const SchemeInfo*, 12> kSchemes{
+    &internal::kFviGl,           &internal::kFviBdf2,       &internal::kFviMidpoint,
+    &internal::kFviLobatto2,     &internal::kFviLobatto3,   &internal::kFviLobatto4,
+    &internal::kEulerExplicit,   &internal::kEulerImplicit, &internal::kLdaMidpoint,
+    &internal::kConformalStrang, &internal::kDopri5,        &internal::kPiTrapezoid,
 };
 
 }  // namespace
@@ -64,7 +66,8 @@ std::vector<SchemeRow> scheme_table() {
     rows.push_back({std::string(info->name), std::string(info->order_rule),
                     std::string(info->applies_to), std::string(info->stability_rule),
                     std::string(info->summary), std::string(info->reference), info->stages,
-                    info->variational, info->has_mirror, info->exact_balance, info->fast_history});
+                    info->variational, info->has_mirror, info->exact_balance, info->fast_history,
+                    info->adaptive});
   }
   return rows;
 }
@@ -133,7 +136,7 @@ void check_applicable(const InitialValueProblem& problem, const Method& method,
     advice = "; the largest stable step is h < " + format_number(bound.largest_step) +
              ", i.e. time.steps >= " + format_number(steps);
   } else {
-    advice = "; no step size is stable for this damping (reduce R or use another scheme)";
+    advice = "; no step size is stable for this problem (use another scheme)";
   }
   throw ValidationError("time.steps = " + std::to_string(problem.steps) + " (h = " +
                         format_number(problem.step_size()) + ") is beyond the stability bound of " +

@@ -468,8 +468,8 @@ class Run(unittest.TestCase):
             (["method.newton_tolerence=1e-9"],
              "fracvi run: <built-in problem>: --set method.newton_tolerence: unknown key (did you "
              "mean 'newton_tolerance'?); valid in [method]: scheme, newton_tolerance, "
-             "newton_max_iterations, history, history_tolerance, linear_solver, load, "
-             "error_estimate, tolerance, max_steps, threads"),
+             "newton_max_iterations, history, history_tolerance, abs_tolerance, rel_tolerance, "
+             "linear_solver, load, error_estimate, tolerance, max_steps, threads"),
             (["output.stride=2"],
              "fracvi run: <built-in problem>: --set output.stride: unknown key; valid in [output]: "
              "every"),
@@ -506,7 +506,7 @@ class Methods(unittest.TestCase):
         self.assertEqual(names[:2], ["fvi-gl", "fvi-bdf2"])
         for row in rows:
             for key in ("order", "stages", "variational", "mirror", "exact_balance", "fast_history",
-                        "applies_to", "stability", "summary", "reference"):
+                        "adaptive", "applies_to", "stability", "summary", "reference"):
                 self.assertIn(key, row)
         r = run("methods")
         self.assertEqual(r.returncode, 0, r.stderr)

@@ -50,10 +50,16 @@ Solution run(const InitialValueProblem& p, const Method& method, HistoryKind kin
 }
 
 /// The registered schemes with a fast history.
+// The schemes with a fast history that run this file's oscillator (α = 0.3 and 0.75, N = 20000)
+// within their stability bound at its coarsest grid (euler-explicit's bound is h < 0.066 there,
+// h = 0.2: it is left out).
 std::vector<Method> fast_schemes() {
   std::vector<Method> out;
-  for (const SchemeInfo* info : registered_schemes())
-    if (info->fast_history) out.emplace_back(*info);
+  for (const SchemeInfo* info : registered_schemes()) {
+    if (!info->fast_history) continue;
+    if (!info->stability(oscillator(0.75, 1024)).stable) continue;
+    out.emplace_back(*info);
+  }
   return out;
 }
 

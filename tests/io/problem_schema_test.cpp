@@ -181,6 +181,8 @@ std::vector<std::string> differences(const fracvi::ProblemSpec& a, const fracvi:
   check(a.newton_max_iterations == b.newton_max_iterations, "newton_max_iterations");
   check(a.history == b.history, "history");
   check(a.history_tolerance == b.history_tolerance, "history_tolerance");
+  check(a.abs_tolerance == b.abs_tolerance, "abs_tolerance");
+  check(a.rel_tolerance == b.rel_tolerance, "rel_tolerance");
   check(a.linear_solver == b.linear_solver, "linear_solver");
   check(a.load == b.load, "load");
   check(a.error_estimate == b.error_estimate, "error_estimate");
@@ -328,6 +330,8 @@ const std::vector<Case>& cases() {
        [](Json& j) { j["method"]["newton_max_iterations"] = 7; }},
       {"method.history", "", [](Json& j) { j["method"]["history"] = "fast"; }},
       {"method.history_tolerance", "", [](Json& j) { j["method"]["history_tolerance"] = 3e-9; }},
+      {"method.abs_tolerance", "", [](Json& j) { j["method"]["abs_tolerance"] = 2e-7; }},
+      {"method.rel_tolerance", "", [](Json& j) { j["method"]["rel_tolerance"] = 3e-6; }},
       {"method.linear_solver", "", [](Json& j) { j["method"]["linear_solver"] = "dense"; }},
       {"method.load", "", [](Json& j) { j["method"]["load"] = "moments"; }},
       {"method.error_estimate", "", [](Json& j) { j["method"]["error_estimate"] = "none"; }},
@@ -424,7 +428,8 @@ TEST(ProblemWriters, SetOverridesAreCheckedAgainstTheSchema) {
       message("method.newton_tolerence=1e-9"),
       "<built-in>: --set method.newton_tolerence: unknown key (did you mean 'newton_tolerance'?); "
       "valid in [method]: scheme, newton_tolerance, newton_max_iterations, history, "
-      "history_tolerance, linear_solver, load, error_estimate, tolerance, max_steps, threads");
+      "history_tolerance, abs_tolerance, rel_tolerance, linear_solver, load, error_estimate, "
+      "tolerance, max_steps, threads");
   EXPECT_EQ(message("output.every.n=1"),
             "<built-in>: --set output.every.n: unknown section [output.every]; valid sections: "
             "[model], [model.chain], [initial], [boundary], [time], [method], [output], "

@@ -10,7 +10,8 @@
 //                    against Boost.Odeint dopri5 at 1e-12;
 //   (b) the mirror run reproduces the reversed trajectory to round-off (where has_mirror);
 //   (c) the energy balance is exact to round-off for a quadratic time-independent U, any R, α, f
-//       (where exact_balance), with a nonlinear negative control;
+//       (where exact_balance), with a nonlinear negative control; for the baselines without an
+//       exact balance, its error vanishes at the declared order;
 //   (d) the step loop does not allocate, with a control showing the counter is live;
 //   (e) a failing run (a potential that throws, or turns NaN, after some time) ends with a failure
 //       status and keeps the finite trajectory computed so far;
@@ -321,6 +322,13 @@ OrderCase pendula_case() {
 }
 
 void SchemeSuite::expect_declared_orders(const std::vector<OrderCase>& cases) const {
+  if (info().adaptive) {
+    std::printf(
+        "[ skipped  ] %s: adaptive, h only samples the dense output; the order in the "
+        "tolerance is checked by DeclaredOrderAdaptiveInTolerance\n",
+        name().c_str());
+    return;
+  }
   for (const OrderCase& c : cases) {
     if (skip_case(c.label, c.make(c.steps.front()))) continue;
     expect_declared_order(info(), c);
@@ -346,7 +354,44 @@ TEST_P(SchemeSuite, DeclaredOrderNonlinearCubicPowerLaw) {
 TEST_P(SchemeSuite, DeclaredOrderNonlinearPendulaAgainstDopri5) {
   const OrderCase c = pendula_case();
   if (skip_case(c.label, c.make(c.steps.front()))) GTEST_SKIP();
+  if (info().adaptive) GTEST_SKIP() << "adaptive: see DeclaredOrderAdaptiveInTolerance";
   expect_declared_order(info(), c);
+}
+
+// (a') An adaptive scheme (SchemeInfo::adaptive) controls the local error per internal step; with
+// error-per-step control a method of order p takes steps dt ∝ tol^{1/(p+1)}, so the global error
+// falls like tol^{p/(p+1)} (5/6 for dopri5) at a fixed output grid. Measured on the damped
+// oscillator (linear, against the matrix exponential) and the forced pendula (nonlinear, against
+// dopri5 at 1e-12, itself checked by the fixed-step schemes' orders), abs = rel = tol.
+TEST_P(SchemeSuite, DeclaredOrderAdaptiveInTolerance) {
+  if (!info().adaptive) GTEST_SKIP() << name() << " has a fixed step";
+  for (const OrderCase& c : {damped_oscillator_case(true), pendula_case()}) {
+    const std::size_t n = c.steps.front();
+    const InitialValueProblem problem = c.make(n);
+    if (skip_case(c.label, problem)) continue;
+    const int declared = info().declared_order(problem.model);
+    const double expected = static_cast<double>(declared) / (declared + 1.0);
+    std::vector<double> tols, errors;
+    for (const double tol : {1e-5, 1e-6, 1e-7, 1e-8, 1e-9}) {
+      IntegratorOptions options;
+      options.mirror = false;
+      options.abs_tolerance = tol;
+      options.rel_tolerance = tol;
+      const Solution sol = integrate(problem, method(), options);
+      ASSERT_TRUE(sol.ok()) << c.label << " tol " << tol << ": " << sol.message;
+      tols.push_back(tol);
+      errors.push_back(test::max_position_error(sol, c.reference, n / c.samples));
+    }
+    const double x_scale = c.reference.leftCols(problem.x0.size()).cwiseAbs().maxCoeff();
+    const test::OrderFit fit =
+        test::fit_order(tols, errors, {.floor = test::round_off_floor(x_scale)});
+    std::printf("%s", fit.table(name() + ", " + c.label + ", max|x err| against tol (expected " +
+                                "slope p/(p+1) = " + std::to_string(expected) + ")")
+                          .c_str());
+    RecordProperty("tolerance_order_" + c.label, std::to_string(fit.slope));
+    EXPECT_TRUE(fit.valid);
+    EXPECT_GE(fit.slope, expected - kOrderMargin);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -436,6 +481,49 @@ TEST_P(SchemeSuite, EnergyBalanceNegativeControlNonlinearPotential) {
               name().c_str(), sol.max_balance_error, balance_tolerance(sol));
   // 1e3: the defect must be visible above round-off, not near it.
   EXPECT_GT(sol.max_balance_error, 1e3 * balance_tolerance(sol));
+}
+
+// (c') A scheme without an exact discrete balance (the baselines: SchemeInfo::variational false,
+// exact_balance false) books W_k as a quadrature of the damping power on the grid
+// (docs/theory/baselines.md): its balance error must then vanish at the scheme's declared order
+// (at least; dopri5's account is a grid quadrature of order 2 whatever its tolerance), so that it
+// is a meaningful consistency check. Quadratic U with forcing, 2α = 1 and 1.5 (Caputo), on the
+// scheme's domain; the fit is over N = 400 … 3200 above the round-off plateau.
+TEST_P(SchemeSuite, EnergyBalanceErrorConvergesForBaselines) {
+  if (info().variational || info().exact_balance) {
+    GTEST_SKIP() << name() << ": checked by the exact-balance tests";
+  }
+  IntegratorOptions options;
+  options.mirror = false;
+  int ran = 0;
+  for (const double alpha : {0.5, 0.75}) {
+    const std::string label = "alpha " + std::to_string(alpha);
+    if (skip_case(label, balance_problem(alpha, Convention::kCaputo, 400))) continue;
+    ++ran;
+    const int declared =
+        info().adaptive
+            ? 2
+            : info().declared_order(balance_problem(alpha, Convention::kCaputo, 400).model);
+    std::vector<double> hs, errors;
+    double scale = 0.0;
+    for (const std::size_t n : {400ul, 800ul, 1600ul, 3200ul}) {
+      const InitialValueProblem p = balance_problem(alpha, Convention::kCaputo, n);
+      const Solution sol = integrate(p, method(), options);
+      ASSERT_TRUE(sol.ok()) << label << ": " << sol.message;
+      hs.push_back(p.step_size());
+      errors.push_back(sol.max_balance_error);
+      scale = std::max(scale, sol.energy.cwiseAbs().maxCoeff());
+    }
+    const test::OrderFit fit = test::fit_order(hs, errors, {.floor = test::round_off_floor(scale)});
+    std::printf("%s", fit.table(name() + ", " + label + ", max |E + W - E0| (declared order " +
+                                std::to_string(declared) + ")")
+                          .c_str());
+    RecordProperty("balance_order_alpha_" + std::to_string(static_cast<int>(100.0 * alpha)),
+                   std::to_string(fit.slope));
+    EXPECT_TRUE(fit.valid) << label;
+    EXPECT_GE(fit.slope, declared - kOrderMargin) << label;
+  }
+  if (ran == 0) GTEST_SKIP() << "no case within the scheme's domain";
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -535,8 +623,11 @@ TEST_P(SchemeSuite, FailingRunKeepsPartialTrajectory) {
     const double h = p.step_size();
     ASSERT_GT(sol.steps_done, 0u);
     EXPECT_LT(sol.steps_done, kN);
+    // An explicit scheme evaluating U at the left end t_k only fails in the step starting past
+    // t_fail, one step later: then t_fail + h is the bound.
+    const double late = info().name == "euler-explicit" ? 1.0 : 0.5;
     EXPECT_GE(p.time(static_cast<double>(sol.steps_done)), kTFail - 1.5 * h);
-    EXPECT_LE(p.time(static_cast<double>(sol.steps_done)), kTFail + 0.5 * h);
+    EXPECT_LE(p.time(static_cast<double>(sol.steps_done)), kTFail + late * h + 1e-12);
     ASSERT_EQ(sol.x.rows(), static_cast<Eigen::Index>(sol.steps_done + 1));
     ASSERT_EQ(sol.v.rows(), sol.x.rows());
     EXPECT_TRUE(sol.x.allFinite());
@@ -550,6 +641,9 @@ TEST_P(SchemeSuite, FailingRunKeepsPartialTrajectory) {
 // (f) Theorem 4.3: invariance under x = Λz.
 
 TEST_P(SchemeSuite, Theorem43InvarianceUnderLinearChangeOfVariables) {
+  // An adaptive scheme's controller measures the error per component, so x and z = Λ⁻¹x take
+  // different internal steps: the two runs agree to the tolerance, not to round-off.
+  if (info().adaptive) GTEST_SKIP() << name() << ": adaptive steps are not invariant under x = Λz";
   constexpr std::size_t kN = 400;
   const Eigen::MatrixXd lambda{{1.0, 0.7}, {-0.4, 2.0}};  // invertible, not orthogonal
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(lambda);
@@ -642,6 +736,7 @@ using test::stepper_growth;
 TEST_P(SchemeSuite, StabilityBoundIsSharpAndEnforced) {
   int checked = 0;
   for (const double alpha : {0.25, 0.5, 0.75}) {  // 2α = 0.5, 1, 1.5
+    if (!info().applicability(stability_problem(alpha, 1e-3, 10)).empty()) continue;
     const StabilityBound probe = info().stability(stability_problem(alpha, 1e-3, 10));
     const double h_star = probe.largest_step;
     char label[32];
@@ -704,6 +799,7 @@ TEST_P(SchemeSuite, UnboundedStepIsStableOverAGridOfDampingAndSteps) {
         p.v0 = Eigen::VectorXd::Zero(1);
         p.steps = 2000;
         p.t_end = h * static_cast<double>(p.steps);
+        if (!info().applicability(p).empty()) continue;  // e.g. dopri5 only for 2α = 1
         ASSERT_TRUE(info().stability(p).stable) << "beta " << beta << " R " << r << " h " << h;
         const double growth = stepper_growth(info(), p);
         ++runs;

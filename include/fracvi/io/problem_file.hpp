@@ -11,6 +11,7 @@
 //   [boundary] start, end           (x(a) = y(b), x(b) = y(a): the BVP of `fracvi bvp`)
 //   [time]     start, end, steps | step
 //   [method]   scheme, newton_tolerance, newton_max_iterations, history, history_tolerance,
+//              abs_tolerance, rel_tolerance,
 //              linear_solver, threads
 //   [output]   every                (the stride of the stored states)
 //   [reference] position   (optional exact solution: d formulas in t)
@@ -89,6 +90,9 @@ struct ProblemSpec {
   std::string history = std::string(to_string(IntegratorOptions{}.history));
   double history_tolerance =
       IntegratorOptions{}.history_tolerance;  ///< per-weight relative accuracy of the fast history
+  /// error tolerances of the adaptive schemes (dopri5)
+  double abs_tolerance = IntegratorOptions{}.abs_tolerance;
+  double rel_tolerance = IntegratorOptions{}.rel_tolerance;
   /// "auto", "dense", "banded" or "sparse" (Newton matrix)
   std::string linear_solver = std::string(to_string(IntegratorOptions{}.linear_solver));
   /// "pointwise" or "moments" (how the forcing enters)

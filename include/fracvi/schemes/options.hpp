@@ -81,6 +81,11 @@ struct IntegratorOptions {
   /// or sparse factorisation when M is stored sparse and the potential declares a sparse Hessian
   /// (O(d) per step for chains), dense otherwise (symmetric_factor.hpp).
   LinearSolver linear_solver = LinearSolver::kAuto;
+  /// Error tolerances of the adaptive schemes (SchemeInfo::adaptive, dopri5): the controller keeps
+  /// each internal step's error estimate below abs_tolerance + rel_tolerance·|z| per component of
+  /// z = (x, v). Ignored by the fixed-step schemes.
+  double abs_tolerance = 1e-8;
+  double rel_tolerance = 1e-8;
   /// Store every n-th state (and always the last one): a run of 10^6 steps of 1000 degrees of
   /// freedom would otherwise keep 16 GB of positions and velocities. Diagnostics and the mirror
   /// check still see every step (the mirror error is then the maximum over the stored rows).

@@ -63,6 +63,10 @@ struct SchemeInfo {
   CqScheme momentum_quadrature = CqScheme::kGrunwaldLetnikov;
   /// method.load = "moments" (ForcingLoad::kMoments) is available.
   bool forcing_moments = false;
+  /// The step is chosen by an error controller from method.abs_tolerance and
+  /// method.rel_tolerance (dopri5); the grid step h only samples its dense output, so the error
+  /// follows the tolerances and the declared order is the order in the tolerance, not in h.
+  bool adaptive = false;
   std::string_view applies_to;      ///< where it applies, in words ("every model", "2α = 1")
   std::string_view stability_rule;  ///< the stability bound in words
   /// The order the scheme reaches on smooth solutions of this model.
@@ -86,12 +90,13 @@ std::string scheme_names();
 
 /// The registry as text columns, one entry per scheme with the keys name, order, stages,
 /// variational, mirror, exact_balance, applies_to, stability, summary, reference (what
-/// `fracvi methods --json` prints and Python's fracvi.methods() returns, plus fast_history; values
-/// are strings, integers or booleans).
+/// `fracvi methods --json` prints and Python's fracvi.methods() returns, plus fast_history and
+/// adaptive; values are strings, integers or booleans).
 struct SchemeRow {
   std::string name, order, applies_to, stability, summary, reference;
   int stages = 1;
-  bool variational = true, mirror = false, exact_balance = false, fast_history = false;
+  bool variational = true, mirror = false, exact_balance = false, fast_history = false,
+       adaptive = false;
 };
 std::vector<SchemeRow> scheme_table();
 
