@@ -87,6 +87,29 @@ void estimate_error(const InitialValueProblem& problem, const Method& method,
   }
   const auto start = std::chrono::steady_clock::now();
   const std::size_t n = problem.steps;
+  if (method.info().adaptive) {
+    // An adaptive scheme's error follows its tolerances, not h: the companion is the same grid
+    // with tolerances 1000 times tighter (its error is then far below the run's; measured slope
+    // of error against tolerance ≈ 1, docs/verification.md).
+    constexpr double kTighter = 1e-3;
+    IntegratorOptions tight = options;
+    tight.abs_tolerance *= kTighter;
+    tight.rel_tolerance *= kTighter;
+    std::string why;
+    const std::optional<RowMatrixXd> reference =
+        companion(problem, method, tight, solution, n, why);
+    if (!reference) {
+      e.note = why;
+    } else {
+      std::size_t rows = 0;
+      e.value = max_difference(solution.x, *reference, nullptr, rows);
+      e.nodes = rows;
+      e.method = "tolerances / 1000 (adaptive scheme)";
+    }
+    e.wall_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return;
+  }
   const int declared = method.declared_order(problem.model);
   const RowMatrixXd& x = solution.x;
   std::string why;
@@ -154,6 +177,13 @@ Solution integrate_to_tolerance(const InitialValueProblem& problem, const Method
                           " must be a positive number");
   }
   IntegratorOptions o = options;
+  if (method.info().adaptive) {
+    throw ValidationError(
+        "method.tolerance doubles time.steps, which does not set the error of "
+        "the adaptive method.scheme = \"" +
+        std::string(method.name()) +
+        "\": give it method.abs_tolerance and method.rel_tolerance instead");
+  }
   if (o.error_estimate == ErrorEstimateKind::kNone) {
     throw ValidationError(
         "method.tolerance needs an error estimate: method.error_estimate = \"none\" is set");

@@ -128,6 +128,17 @@ TEST(ErrorEstimate, WithinAFactorThreeOfTheTrueError) {
       {"forced pendula, nonlinear (dopri5)", pendula, dopri5, "fvi-gl", 1600},
       {"forced pendula, nonlinear (dopri5)", pendula, dopri5, "fvi-bdf2", 400},
       {"forced pendula, nonlinear (dopri5)", pendula, dopri5, "fvi-lobatto3", 64},
+      // The baselines (issue 12): dopri5's companion is the same grid at 1000 times tighter
+      // tolerances (its error follows them, not h).
+      {"damped 2-D oscillator (closed form)", test::published_oscillator_2d, closed_form_2d,
+       "dopri5", 300},
+      {"damped 2-D oscillator (closed form)", test::published_oscillator_2d, closed_form_2d,
+       "euler-implicit", 3000},
+      {"damped 2-D oscillator (closed form)", test::published_oscillator_2d, closed_form_2d,
+       "conformal-strang", 400},
+      {"Caputo 2a = 1.5 (Laplace inversion)", oscillator(caputo15), laplace(caputo15),
+       "pi-trapezoid", 400},
+      {"forced pendula, nonlinear (dopri5)", pendula, dopri5, "lda-midpoint", 400},
   };
   for (const Case& c : cases) {
     const double r = ratio(c);
