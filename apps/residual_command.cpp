@@ -65,8 +65,9 @@ Command add_residual_command(CLI::App& parent) {
       "equations (FracEL) of the problem's Lagrangian along the curves x(t), y(t) on [time.start, "
       "time.end]: T, then the d components of dL/dx - d/dt dL/dxdot + D^alpha_-(dL/d dy), then "
       "the d components of dL/dy - d/dt dL/dydot + D^alpha_+(dL/d dx), 17 significant digits. "
-      "Riemann-Liouville operators: where the Lagrangian couples dx and dy, x must vanish at "
-      "time.start and y at time.end. Exit status: 0 success, 2 bad input.");
+      "Riemann-Liouville operators; x(time.start) and y(time.end) need not vanish (the endpoint "
+      "singularities are split off in closed form where the coupling of dx and dy is affine with "
+      "a constant coefficient). Exit status: 0 success, 2 bad input.");
   app->add_option("problem", opt->file, "problem file (TOML): [model] and [time] are used")
       ->required();
   app->add_option("--set", opt->overrides, "override a problem value (repeatable)");

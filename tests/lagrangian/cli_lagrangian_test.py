@@ -160,6 +160,16 @@ class Residual(unittest.TestCase):
         for row in rows:
             self.assertLessEqual(max(abs(v) for v in row[1:]), 1e-12)
 
+    def test_nonzero_initial_position_and_velocity(self):
+        # Issue 13 item 2: x(0) = 1, v(0) = 0.5 (and y(b) = 1): the endpoint singularities
+        # x(a)(t-a)^(-1/2)/Gamma(1/2) are split off in closed form; round-off, up to near the ends.
+        w, c = "sqrt(3.96)", "(0.7/sqrt(3.96))"
+        x = f"exp(-0.2*t)*(cos({w}*t) + {c}*sin({w}*t))"
+        y = f"exp(-0.2*(2-t))*(cos({w}*(2-t)) + {c}*sin({w}*(2-t)))"
+        rows = self.values("--x", x, "--y", y, "--t", "0.001,0.5,1,1.5,1.999")
+        for row in rows:
+            self.assertLessEqual(max(abs(v) for v in row[1:]), 1e-10)
+
     def test_non_solution_has_order_one_residual(self):
         rows = self.values("--x", "sin(2*t)", "--y", "sin(2*(2-t))", "--t", "1")
         self.assertGreater(abs(rows[0][1]), 0.1)
@@ -218,8 +228,11 @@ class BadInput(unittest.TestCase):
         self.assert_bad(["residual", osc, "--x", "t,t", "--y", "0", "--t", "1"], "--x", "2 components")
         self.assert_bad(["residual", osc, "--x", "s", "--y", "0", "--t", "1"], "--x", "'s'")
         self.assert_bad(["residual", osc, "--x", "t", "--y", "0", "--t", "3"], "--t", "outside")
-        # x(a) != 0: D^alpha_- x is unbounded at a.
-        self.assert_bad(["residual", osc, "--x", "1+t", "--y", "0", "--t", "1"], "x(a) = 0")
+        # At t = a the outer D^alpha_- acts at its terminal on -R D^alpha_- x ~ (t-a)^(1/2).
+        self.assert_bad(["residual", osc, "--x", "1+t", "--y", "0", "--t", "0"], "terminal")
+        # x(a) != 0 with a dL/dD^alpha_+y that is not affine in D^alpha_- x (the coupled L).
+        self.assert_bad(["residual", data("coupled_bvp.toml"), "--x", "1+t,t", "--y", "1.5-t,0.3*(1.5-t)",
+                         "--t", "1"], "x(a) = (1, 0) != 0", "x(a) = 0")
 
     def test_bad_flags(self):
         self.assert_bad(["bvp", data("coupled_bvp.toml"), "--sum", "both"], "--sum")
