@@ -15,41 +15,6 @@
 
 namespace fracvi::cli {
 
-namespace {
-
-// Splits "f1, f2" at the commas that are not inside parentheses (pow(a, b) stays whole).
-std::vector<std::string> split_formulas(const std::string& text) {
-  std::vector<std::string> parts(1);
-  int depth = 0;
-  for (char c : text) {
-    if (c == '(') ++depth;
-    if (c == ')') --depth;
-    if (c == ',' && depth == 0) {
-      parts.emplace_back();
-    } else {
-      parts.back() += c;
-    }
-  }
-  return parts;
-}
-
-Curve parse_curve(const std::string& flag, const std::string& text, Eigen::Index d) {
-  const auto formulas = split_formulas(text);
-  if (static_cast<Eigen::Index>(formulas.size()) != d) {
-    throw UsageError(flag + " = \"" + text + "\" has " + std::to_string(formulas.size()) +
-                     " components, model.dim is " + std::to_string(d) +
-                     " (give d formulas in t separated by commas)");
-  }
-  try {
-    return make_expression_curve(formulas);
-  } catch (const ExpressionError& e) {
-    throw UsageError(flag + " = \"" + text + "\": " + e.reason() + " at column " +
-                     std::to_string(e.column() + 1) + " (formulas in t)");
-  }
-}
-
-}  // namespace
-
 Command add_residual_command(CLI::App& parent) {
   struct Options {
     std::string file;
@@ -81,19 +46,9 @@ Command add_residual_command(CLI::App& parent) {
                   "relative tolerance of the tanh-sinh quadratures (default 1e-12)");
 
   auto run = [opt]() {
-    ProblemSpec spec;
-    std::shared_ptr<const Lagrangian> lagrangian;
-    try {
-      spec = load_problem(opt->file, opt->overrides);
-      lagrangian = make_lagrangian(spec);
-    } catch (const ProblemFileError& e) {
-      throw UsageError(e.what());
-    } catch (const ExpressionError& e) {
-      throw UsageError(spec.source + ": " + e.reason() + " at column " +
-                       std::to_string(e.column() + 1));
-    } catch (const ValidationError& e) {
-      throw UsageError(spec.source + ": " + e.what());
-    }
+    const LagrangianProblem problem = load_lagrangian_problem(opt->file, opt->overrides);
+    const ProblemSpec& spec = problem.spec;
+    const std::shared_ptr<const Lagrangian>& lagrangian = problem.lagrangian;
     const Curve x = parse_curve("--x", opt->x, spec.dim);
     const Curve y = parse_curve("--y", opt->y, spec.dim);
     for (double t : opt->t) {
