@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/potential.hpp"
 #include "lagrangian_test_support.hpp"
 
@@ -386,6 +387,54 @@ TEST(ContinuousResidual, GyroscopicTimeDependentLagrangianClosedForms) {
     EXPECT_GT(memory, 0.05);
     EXPECT_GT(ends, 0.05);
   }
+}
+
+// Issue 13 item 4, time reversal (`rem:interpret_rev`, Rem. 4.9): the mechanical L is invariant
+// under (x, y)(t) ↦ (x̃, ỹ)(t) = (y, x)(a + b − t) (D^α_−x̃(t) = D^α_+y(a + b − t) by the reflection
+// of `RL`; the kinetic terms are even in the velocity; U_f(y, ·) carries the mirrored time). So the
+// x-equation of the reversed pair at a + b − t is the y-equation at t, and vice versa, for any
+// curves (not only solutions), here with full M, R, a time-dependent potential, forcing and
+// x(a), y(b) ≠ 0. Negative control: the gyroscopic L (ẋ·D^α_+y is not invariant) breaks it.
+TEST(ContinuousResidual, TimeReversalMapsTheXEquationToTheYEquation) {
+  const double a = 0.5, b = 2.0, alpha = 0.65;
+  const InitialValueProblem ivp = test::mechanical_ivp(alpha, b, 10);
+  const MechanicalLagrangian mechanical(ivp.model, a, b);
+  const ExpressionLagrangian gyroscopic(2,
+                                        "0.5*(xdot1^2 + xdot2^2 + ydot1^2 + ydot2^2)"
+                                        " - 0.6*(dx1*dy1 + dx2*dy2) + 0.45*xdot1*dy2");
+  const std::vector<std::string> xs = {"0.4 + 0.5*(t - 0.5) + 0.3*sin(t)", "-0.3 + 0.2*t^2"};
+  const std::vector<std::string> ys = {"0.2*cos(2*t) + 0.1*t", "0.7 - 0.4*(2 - t)^2.5*(1 + t)"};
+  auto reversed = [](const std::vector<std::string>& formulas) {
+    std::vector<std::string> out;
+    for (const std::string& f : formulas) {
+      std::string g;
+      for (char c : f) g += c == 't' ? std::string("(2.5 - t)") : std::string(1, c);
+      out.push_back(g);
+    }
+    return make_expression_curve(out);
+  };
+  const Curve x = make_expression_curve(xs), y = make_expression_curve(ys);
+  const Curve x_rev = reversed(ys), y_rev = reversed(xs);  // x̃(t) = y(a+b−t), ỹ(t) = x(a+b−t)
+  double worst = 0.0, size = 0.0, control = 0.0;
+  for (double t : {0.8, 1.3, 1.9}) {
+    const ContinuousElResidual r = fractional_el_residual(mechanical, alpha, x, y, a, b, t);
+    const ContinuousElResidual rr =
+        fractional_el_residual(mechanical, alpha, x_rev, y_rev, a, b, a + b - t);
+    worst = std::max({worst, (r.y_equation - rr.x_equation).cwiseAbs().maxCoeff(),
+                      (r.x_equation - rr.y_equation).cwiseAbs().maxCoeff()});
+    size = std::max(size, r.y_equation.cwiseAbs().maxCoeff());
+    const ContinuousElResidual g = fractional_el_residual(gyroscopic, alpha, x, y, a, b, t);
+    const ContinuousElResidual gr =
+        fractional_el_residual(gyroscopic, alpha, x_rev, y_rev, a, b, a + b - t);
+    control = std::max(control, (g.y_equation - gr.x_equation).cwiseAbs().maxCoeff());
+  }
+  std::printf(
+      "  time reversal: max |E_y(t) - E~_x(a+b-t)| = %.2e (residuals up to %.2f); "
+      "gyroscopic L: %.3f\n",
+      worst, size, control);
+  EXPECT_GT(size, 0.1);  // not 0 = 0: the curves are not solutions
+  EXPECT_LE(worst, kQuadratureBound * (1.0 + size));
+  EXPECT_GT(control, 0.05);
 }
 
 TEST(ContinuousResidual, RejectsBadInputAndUnboundedMemory) {
