@@ -6,9 +6,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "fracvi/io/problem_file.hpp"
+#include "fracvi/lagrangian/continuous_residual.hpp"
+#include "fracvi/lagrangian/lagrangian.hpp"
 
 namespace fracvi::cli {
 
@@ -89,5 +94,18 @@ Command add_plot_command(CLI::App& parent);
 Command add_residual_command(CLI::App& parent);
 Command add_bvp_command(CLI::App& parent);
 Command add_methods_command(CLI::App& parent);
+Command add_action_command(CLI::App& parent);
+
+/// A problem file's spec and its Lagrangian (`fracvi residual`, `fracvi action`); UsageError for
+/// bad input.
+struct LagrangianProblem {
+  ProblemSpec spec;
+  std::shared_ptr<const Lagrangian> lagrangian;
+};
+LagrangianProblem load_lagrangian_problem(const std::string& file,
+                                          const std::vector<std::string>& overrides);
+
+/// d formulas in t separated by commas outside parentheses; UsageError naming the flag otherwise.
+Curve parse_curve(const std::string& flag, const std::string& text, Eigen::Index d);
 
 }  // namespace fracvi::cli

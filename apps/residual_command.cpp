@@ -15,41 +15,6 @@
 
 namespace fracvi::cli {
 
-namespace {
-
-// Splits "f1, f2" at the commas that are not inside parentheses (pow(a, b) stays whole).
-std::vector<std::string> split_formulas(const std::string& text) {
-  std::vector<std::string> parts(1);
-  int depth = 0;
-  for (char c : text) {
-    if (c == '(') ++depth;
-    if (c == ')') --depth;
-    if (c == ',' && depth == 0) {
-      parts.emplace_back();
-    } else {
-      parts.back() += c;
-    }
-  }
-  return parts;
-}
-
-Curve parse_curve(const std::string& flag, const std::string& text, Eigen::Index d) {
-  const auto formulas = split_formulas(text);
-  if (static_cast<Eigen::Index>(formulas.size()) != d) {
-    throw UsageError(flag + " = \"" + text + "\" has " + std::to_string(formulas.size()) +
-                     " components, model.dim is " + std::to_string(d) +
-                     " (give d formulas in t separated by commas)");
-  }
-  try {
-    return make_expression_curve(formulas);
-  } catch (const ExpressionError& e) {
-    throw UsageError(flag + " = \"" + text + "\": " + e.reason() + " at column " +
-                     std::to_string(e.column() + 1) + " (formulas in t)");
-  }
-}
-
-}  // namespace
-
 Command add_residual_command(CLI::App& parent) {
   struct Options {
     std::string file;
@@ -65,8 +30,9 @@ Command add_residual_command(CLI::App& parent) {
       "equations (FracEL) of the problem's Lagrangian along the curves x(t), y(t) on [time.start, "
       "time.end]: T, then the d components of dL/dx - d/dt dL/dxdot + D^alpha_-(dL/d dy), then "
       "the d components of dL/dy - d/dt dL/dydot + D^alpha_+(dL/d dx), 17 significant digits. "
-      "Riemann-Liouville operators: where the Lagrangian couples dx and dy, x must vanish at "
-      "time.start and y at time.end. Exit status: 0 success, 2 bad input.");
+      "Riemann-Liouville operators; x(time.start) and y(time.end) need not vanish (the endpoint "
+      "singularities are split off in closed form where the coupling of dx and dy is affine with "
+      "a constant coefficient). Exit status: 0 success, 2 bad input.");
   app->add_option("problem", opt->file, "problem file (TOML): [model] and [time] are used")
       ->required();
   app->add_option("--set", opt->overrides, "override a problem value (repeatable)");
@@ -80,19 +46,9 @@ Command add_residual_command(CLI::App& parent) {
                   "relative tolerance of the tanh-sinh quadratures (default 1e-12)");
 
   auto run = [opt]() {
-    ProblemSpec spec;
-    std::shared_ptr<const Lagrangian> lagrangian;
-    try {
-      spec = load_problem(opt->file, opt->overrides);
-      lagrangian = make_lagrangian(spec);
-    } catch (const ProblemFileError& e) {
-      throw UsageError(e.what());
-    } catch (const ExpressionError& e) {
-      throw UsageError(spec.source + ": " + e.reason() + " at column " +
-                       std::to_string(e.column() + 1));
-    } catch (const ValidationError& e) {
-      throw UsageError(spec.source + ": " + e.what());
-    }
+    const LagrangianProblem problem = load_lagrangian_problem(opt->file, opt->overrides);
+    const ProblemSpec& spec = problem.spec;
+    const std::shared_ptr<const Lagrangian>& lagrangian = problem.lagrangian;
     const Curve x = parse_curve("--x", opt->x, spec.dim);
     const Curve y = parse_curve("--y", opt->y, spec.dim);
     for (double t : opt->t) {

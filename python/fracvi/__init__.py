@@ -45,7 +45,7 @@ __all__ = [
     "BvpSolution", "solve_bvp", "methods", "problem_schema",
     "gl_weights", "cq_weights", "midpoint", "delta_minus", "delta_plus", "frac_delta_minus",
     "frac_delta_plus", "convolve_past", "convolve_future", "rl_derivative",
-    "rl_derivative_power",
+    "rl_derivative_power", "fracel_residual", "action",
 ]
 
 ProblemError.__module__ = __name__
@@ -685,3 +685,52 @@ def rl_derivative_power(order, p, t, a, b, side="left"):
     """Closed form D^order_− (t − a)^p (side="left") or D^order_+ (b − t)^p (side="right"):
     Γ(p+1)/Γ(p+1−order) · d^(p−order), d = t − a resp. b − t; any order ≥ 0, p > −1."""
     return _fracvi.rl_derivative_power(float(order), float(p), t, float(a), float(b), side)
+
+
+# ---------------------------------------------------------------------------------------------
+# The continuous equations along given curves (FracEL, ActFunc)
+
+_CURVE_DOC = """
+    Curves (x, y, eta, eta_y) are a formula in t (str, d = 1), a list of d formulas (derivatives
+    exact, from the expression engine), or a tuple (f, fdot, fddot) of callables t -> float
+    (d = 1) or t -> sequence of d floats: fracvi does not differentiate numerically, so callables
+    bring their first and second derivatives. The Lagrangian is the problem's ([model]
+    lagrangian, or the mechanical L of M, R, U), of order problem.alpha, on [time.start,
+    time.end]. Bad input and residuals or integrals that do not exist (docs/cli.md, `residual`
+    and `action`) raise ValueError with the reason.
+"""
+
+
+def fracel_residual(problem, x, y, t, tolerance=1e-12):
+    """Residuals of the restricted fractional Euler-Lagrange equations (`FracEL`) along the
+    curves x(t), y(t) at the times t: returns (x_equation, y_equation), each of shape
+    (len(t), d) (or (d,) for a scalar t), x_equation = dL/dx - d/dt dL/dxdot +
+    D^alpha_-(dL/dD^alpha_+ y), y_equation = dL/dy - d/dt dL/dydot + D^alpha_+(dL/dD^alpha_- x).
+    Nested tanh-sinh quadratures at relative tolerance `tolerance` (about 1e-15 on smooth
+    curves; x(start), y(end) != 0 are handled in closed form where the coupling allows).
+    """
+    problem = _as_problem(problem)
+    scalar = np.ndim(t) == 0
+    points = np.atleast_1d(np.asarray(t, dtype=float)).ravel()
+    ex, ey = _fracvi.fracel_residual(problem._spec, x, y, points.tolist(), float(tolerance))
+    ex, ey = np.asarray(ex), np.asarray(ey)
+    return (ex[0], ey[0]) if scalar else (ex, ey)
+
+
+def action(problem, x, y, eta=None, eta_y=None, *, pairing=False, tolerance=1e-12):
+    """The action A = integral of L(x, y, xdot, ydot, D^alpha_- x, D^alpha_+ y) dt (`ActFunc`)
+    along the curves x(t), y(t), as {"action": A}. With eta, also "variation": the first
+    variation dA = d/de A[x + e eta, y + e eta_y] at e = 0 (exact derivative in e; eta_y defaults
+    to eta: the restricted variation of `ConsVariations`). With pairing=True, also "pairing":
+    the integral of (E_x . eta + E_y . eta_y) dt with E_x, E_y the FracEL residuals, equal to
+    dA for restricted variations vanishing at the ends (Theorem `ConsFraEL`); it needs eta and
+    eta' to vanish at both ends and costs one residual per quadrature node (seconds).
+    """
+    problem = _as_problem(problem)
+    if eta is None and (eta_y is not None or pairing):
+        raise ValueError("action: eta_y and pairing need eta (the variation of x)")
+    return _fracvi.action(problem._spec, x, y, eta, eta_y, bool(pairing), float(tolerance))
+
+
+fracel_residual.__doc__ += _CURVE_DOC
+action.__doc__ += _CURVE_DOC

@@ -44,7 +44,9 @@
 #include "fracvi/io/problem_file.hpp"
 #include "fracvi/io/problem_schema.hpp"
 #include "fracvi/io/run.hpp"
+#include "fracvi/lagrangian/action.hpp"
 #include "fracvi/lagrangian/bvp.hpp"
+#include "fracvi/lagrangian/continuous_residual.hpp"
 #include "fracvi/schemes/registry.hpp"
 
 namespace py = pybind11;
@@ -442,6 +444,71 @@ py::object map_points(py::handle t, Value&& value) {
   return out;
 }
 
+// A curve x(t) ∈ R^d for `FracEL` and the action: a formula in t (str, d = 1), a list of d
+// formulas (derivatives exact, from the expression engine), or a tuple of three callables
+// (x, x', x''), each t -> float (d = 1) or a sequence of d floats: fracvi never differentiates
+// numerically, so callables bring their derivatives.
+Curve python_curve(py::handle c, Eigen::Index d, const std::string& name) {
+  auto wrong_dimension = [&](std::size_t n) {
+    return py::value_error(name + " has " + std::to_string(n) +
+                           " components, the problem's dim is " + std::to_string(d));
+  };
+  if (py::isinstance<py::str>(c)) {
+    if (d != 1) throw wrong_dimension(1);
+    return make_expression_curve({parse_function_of_t(name, c.cast<std::string>()).text()});
+  }
+  if (!py::isinstance<py::sequence>(c)) {
+    throw py::type_error(name +
+                         " must be a formula in t (str), a list of d formulas or a tuple "
+                         "(x, xdot, xddot) of callables, not " +
+                         repr_text(c));
+  }
+  const auto items = c.cast<py::sequence>();
+  bool all_text = items.size() > 0;
+  for (auto item : items) all_text = all_text && py::isinstance<py::str>(item);
+  if (all_text) {
+    if (static_cast<Eigen::Index>(items.size()) != d) throw wrong_dimension(items.size());
+    std::vector<std::string> formulas;
+    for (auto item : items) {
+      formulas.push_back(parse_function_of_t(name, item.cast<std::string>()).text());
+    }
+    return make_expression_curve(formulas);
+  }
+  if (items.size() != 3) {
+    throw py::value_error(name +
+                          " given as callables must be a tuple (x, xdot, xddot) of three "
+                          "(fracvi does not differentiate numerically), not " +
+                          std::to_string(items.size()) + " items");
+  }
+  std::vector<py::object> parts;
+  for (auto item : items) {
+    if (!PyCallable_Check(item.ptr())) {
+      throw py::type_error(name + ": every item of (x, xdot, xddot) must be callable, not " +
+                           repr_text(item));
+    }
+    parts.push_back(py::reinterpret_borrow<py::object>(item));
+  }
+  Curve curve;
+  curve.dimension = d;
+  curve.evaluate = [parts, d, name](double t, int order, Eigen::Ref<Eigen::MatrixXd> out) {
+    for (int k = 0; k <= order; ++k) {
+      const py::object v = parts[static_cast<std::size_t>(k)](t);
+      if (d == 1 && !py::isinstance<py::sequence>(v)) {
+        out(0, k) = v.cast<double>();
+        continue;
+      }
+      const auto values = v.cast<std::vector<double>>();
+      if (static_cast<Eigen::Index>(values.size()) != d) {
+        throw py::value_error(name + ": the callable for derivative " + std::to_string(k) +
+                              " returned " + std::to_string(values.size()) +
+                              " values, the problem's dim is " + std::to_string(d));
+      }
+      for (Eigen::Index i = 0; i < d; ++i) out(i, k) = values[static_cast<std::size_t>(i)];
+    }
+  };
+  return curve;
+}
+
 }  // namespace
 
 void bind(py::module_& m) {
@@ -793,6 +860,49 @@ void bind(py::module_& m) {
       },
       py::arg("order"), py::arg("p"), py::arg("t"), py::arg("a"), py::arg("b"), py::arg("side"));
   m.attr("default_rl_tolerance") = kRlDefaultTolerance;
+
+  // --- FracEL and the action along given curves (issue 13) ----------------------------------
+  m.def(
+      "fracel_residual",
+      [](const ProblemSpec& spec, py::handle x, py::handle y, const std::vector<double>& t,
+         double tolerance) {
+        const auto lagrangian = make_lagrangian(spec);
+        const Curve xc = python_curve(x, spec.dim, "x"), yc = python_curve(y, spec.dim, "y");
+        ContinuousResidualOptions options;
+        options.tolerance = tolerance;
+        Eigen::MatrixXd ex(static_cast<Eigen::Index>(t.size()), spec.dim), ey = ex;
+        for (std::size_t k = 0; k < t.size(); ++k) {
+          const ContinuousElResidual r = fractional_el_residual(
+              *lagrangian, spec.alpha, xc, yc, spec.start, spec.end, t[k], options);
+          ex.row(static_cast<Eigen::Index>(k)) = r.x_equation.transpose();
+          ey.row(static_cast<Eigen::Index>(k)) = r.y_equation.transpose();
+        }
+        return py::make_tuple(ex, ey);
+      },
+      py::arg("spec"), py::arg("x"), py::arg("y"), py::arg("t"), py::arg("tolerance"));
+  m.def(
+      "action",
+      [](const ProblemSpec& spec, py::handle x, py::handle y, py::handle eta, py::handle eta_y,
+         bool pairing, double tolerance) {
+        const auto lagrangian = make_lagrangian(spec);
+        const Curve xc = python_curve(x, spec.dim, "x"), yc = python_curve(y, spec.dim, "y");
+        ContinuousResidualOptions options;
+        options.tolerance = tolerance;
+        py::dict out;
+        out["action"] = action(*lagrangian, spec.alpha, xc, yc, spec.start, spec.end, options);
+        if (eta.is_none()) return out;
+        const Curve dx = python_curve(eta, spec.dim, "eta");
+        const Curve dy = eta_y.is_none() ? dx : python_curve(eta_y, spec.dim, "eta_y");
+        out["variation"] = action_variation(*lagrangian, spec.alpha, xc, yc, dx, dy, spec.start,
+                                            spec.end, options);
+        if (pairing) {
+          out["pairing"] = fracel_pairing(*lagrangian, spec.alpha, xc, yc, dx, dy, spec.start,
+                                          spec.end, options);
+        }
+        return out;
+      },
+      py::arg("spec"), py::arg("x"), py::arg("y"), py::arg("eta"), py::arg("eta_y"),
+      py::arg("pairing"), py::arg("tolerance"));
 }
 
 }  // namespace fracvi::python

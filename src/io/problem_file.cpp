@@ -531,9 +531,9 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
       !p.damping.is_zero()) {
     r.fail("model.convention",
            "\"riemann-liouville\" with damping order 2*alpha = " + format_value(2.0 * p.alpha) +
-               " > 1 and initial.position != 0 is ill-posed: the Riemann-Liouville damping "
-               "force of the constant x(0) behaves like t^(-2 alpha) and is not integrable; use "
-               "convention = \"caputo\" (memory of x - x(0) - t v(0)) or start at x(0) = 0");
+               " > 1 and initial.position != 0 is ill-posed: " +
+               riemann_liouville_obstruction(2.0 * p.alpha) +
+               "; use convention = \"caputo\" (memory of x - x(0) - t v(0)) or start at x(0) = 0");
   }
 
   // [boundary]: x(a) = start = y(b), x(b) = end = y(a) (`fracvi bvp`)

@@ -173,11 +173,22 @@ void validate(const InitialValueProblem& problem) {
   if (problem.model.convention == Convention::kRiemannLiouville && order > 1.0 &&
       !problem.model.is_undamped() && (problem.x0.array() != 0.0).any()) {
     fail("model.convention = riemann-liouville with damping order 2*alpha = " + fmt(order) +
-         " > 1 and x0 != 0 is ill-posed: the Riemann-Liouville damping force contains "
-         "x0 t^(-2 alpha) / Gamma(1 - 2 alpha), which is not integrable at t = 0, so the discrete "
-         "solution does not converge as h -> 0. Use convention = caputo (the memory then acts on "
-         "x - x0 - t v0), or start from x0 = 0");
+         " > 1 and x0 != 0 is ill-posed: " + riemann_liouville_obstruction(order) +
+         ". Use convention = caputo (the memory then acts on x - x0 - t v0), or start from x0 = 0");
   }
+}
+
+std::string riemann_liouville_obstruction(double damping_order) {
+  if (damping_order >= 2.0) {
+    return "at damping order 2 the force of the constant x(0) vanishes pointwise (1/Gamma(-1) = "
+           "0), but the memory sums x extended by 0 before t = 0 and at order 2 its weights form a "
+           "second difference, which kicks "
+           "the first step with -R x(0)/h^2, an impulse -R x(0)/h that grows without bound as "
+           "h -> 0 (the discrete x(0) delta'(t)): the discrete solution does not converge";
+  }
+  return "the Riemann-Liouville damping force of the constant x(0), x(0) t^(-2 alpha) / "
+         "Gamma(1 - 2 alpha), is not integrable at t = 0, so the discrete solution does not "
+         "converge as h -> 0";
 }
 
 }  // namespace fracvi

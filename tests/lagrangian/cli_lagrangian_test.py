@@ -160,6 +160,16 @@ class Residual(unittest.TestCase):
         for row in rows:
             self.assertLessEqual(max(abs(v) for v in row[1:]), 1e-12)
 
+    def test_nonzero_initial_position_and_velocity(self):
+        # Issue 13 item 2: x(0) = 1, v(0) = 0.5 (and y(b) = 1): the endpoint singularities
+        # x(a)(t-a)^(-1/2)/Gamma(1/2) are split off in closed form; round-off, up to near the ends.
+        w, c = "sqrt(3.96)", "(0.7/sqrt(3.96))"
+        x = f"exp(-0.2*t)*(cos({w}*t) + {c}*sin({w}*t))"
+        y = f"exp(-0.2*(2-t))*(cos({w}*(2-t)) + {c}*sin({w}*(2-t)))"
+        rows = self.values("--x", x, "--y", y, "--t", "0.001,0.5,1,1.5,1.999")
+        for row in rows:
+            self.assertLessEqual(max(abs(v) for v in row[1:]), 1e-10)
+
     def test_non_solution_has_order_one_residual(self):
         rows = self.values("--x", "sin(2*t)", "--y", "sin(2*(2-t))", "--t", "1")
         self.assertGreater(abs(rows[0][1]), 0.1)
@@ -170,6 +180,49 @@ class Residual(unittest.TestCase):
                 "--y", "1.5-t,0", "--t", "0.7")
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertEqual(len(r.stdout.split()), 5)
+
+
+class Action(unittest.TestCase):
+    # Issue 13 item 1: `fracvi action`. L = 0.5 xdot^2 - 0.7 dx dy (expression) along x = t^2.5,
+    # y = (1.5 - t)^2.25 on [0, 1.5], alpha = 0.5, against the closed form (Beta integrals).
+    def values(self, *args):
+        r = run("action", *args)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        return {line.split()[0]: float(line.split()[1]) for line in r.stdout.splitlines()}
+
+    def problem(self, directory):
+        path = os.path.join(directory, "action.toml")
+        with open(path, "w", encoding="utf-8") as f:
+            f.write('[model]\ndim = 1\nalpha = 0.5\nlagrangian = "0.5*xdot1^2 - 0.7*dx1*dy1"\n'
+                    '[boundary]\nstart = [0.0]\nend = [0.0]\n[time]\nend = 1.5\nsteps = 10\n')
+        return path
+
+    def test_action_matches_closed_form(self):
+        p, q, alpha, length = 2.5, 2.25, 0.5, 1.5
+        c1 = math.gamma(p + 1) / math.gamma(p + 1 - alpha)
+        c2 = math.gamma(q + 1) / math.gamma(q + 1 - alpha)
+        mu, nu = p - alpha, q - alpha
+        beta = math.gamma(mu + 1) * math.gamma(nu + 1) / math.gamma(mu + nu + 2)
+        expected = (0.5 * p * p * length ** (2 * p - 1) / (2 * p - 1)
+                    - 0.7 * c1 * c2 * length ** (mu + nu + 1) * beta)
+        with tempfile.TemporaryDirectory() as d:
+            v = self.values(self.problem(d), "--x", "t^2.5", "--y", "(1.5 - t)^2.25")
+        self.assertEqual(list(v), ["action"])
+        self.assertLessEqual(abs(v["action"] - expected), 1e-11 * abs(expected))
+
+    def test_exact_solution_is_stationary_and_pairing_agrees(self):
+        # The damped oscillator's exact solution with x(0) = 1 and its mirror: E = 0, so the
+        # restricted first variation vanishes; for a non-solution it equals the pairing.
+        w, c = "sqrt(3.96)", "(0.7/sqrt(3.96))"
+        x = f"exp(-0.2*t)*(cos({w}*t) + {c}*sin({w}*t))"
+        y = f"exp(-0.2*(2-t))*(cos({w}*(2-t)) + {c}*sin({w}*(2-t)))"
+        eta = "t^2*(2 - t)^2"
+        v = self.values(data("oscillator.toml"), "--x", x, "--y", y, "--eta", eta)
+        self.assertLessEqual(abs(v["variation"]), 1e-12)
+        v = self.values(data("oscillator.toml"), "--x", "sin(2*t)", "--y", "sin(2*(2-t))",
+                        "--eta", eta, "--pairing", "--tolerance", "1e-6")
+        self.assertGreater(abs(v["variation"]), 0.1)
+        self.assertLessEqual(abs(v["variation"] - v["pairing"]), 1e-8 * abs(v["variation"]))
 
 
 class BadInput(unittest.TestCase):
@@ -218,8 +271,20 @@ class BadInput(unittest.TestCase):
         self.assert_bad(["residual", osc, "--x", "t,t", "--y", "0", "--t", "1"], "--x", "2 components")
         self.assert_bad(["residual", osc, "--x", "s", "--y", "0", "--t", "1"], "--x", "'s'")
         self.assert_bad(["residual", osc, "--x", "t", "--y", "0", "--t", "3"], "--t", "outside")
-        # x(a) != 0: D^alpha_- x is unbounded at a.
-        self.assert_bad(["residual", osc, "--x", "1+t", "--y", "0", "--t", "1"], "x(a) = 0")
+        # At t = a the outer D^alpha_- acts at its terminal on -R D^alpha_- x ~ (t-a)^(1/2).
+        self.assert_bad(["residual", osc, "--x", "1+t", "--y", "0", "--t", "0"], "terminal")
+        # x(a) != 0 with a dL/dD^alpha_+y that is not affine in D^alpha_- x (the coupled L).
+        self.assert_bad(["residual", data("coupled_bvp.toml"), "--x", "1+t,t", "--y", "1.5-t,0.3*(1.5-t)",
+                         "--t", "1"], "x(a) = (1, 0) != 0", "x(a) = 0")
+
+    def test_action_bad_variations(self):
+        osc = data("oscillator.toml")
+        self.assert_bad(["action", osc, "--x", "t", "--y", "2-t", "--eta", "t"], "--eta",
+                        "t = 2", "must vanish")
+        self.assert_bad(["action", osc, "--x", "t", "--y", "2-t", "--pairing"], "--pairing",
+                        "--eta")
+        self.assert_bad(["action", osc, "--x", "t", "--y", "2-t", "--eta", "t*(2-t)",
+                         "--pairing"], "delta_x", "second order")
 
     def test_bad_flags(self):
         self.assert_bad(["bvp", data("coupled_bvp.toml"), "--sum", "both"], "--sum")

@@ -102,4 +102,12 @@ void validate(const MechanicalModel& model);
 /// Riemann–Liouville + 2α > 1 + x0 ≠ 0. Throws ValidationError.
 void validate(const InitialValueProblem& problem);
 
+/// Why Riemann–Liouville damping of order 2α > 1 with x(0) ≠ 0 is refused (one sentence, for the
+/// messages of validate() and the problem-file reader). For 1 < 2α < 2 the force of the constant
+/// x(0), x(0) t^{−2α}/Γ(1−2α), is not integrable at 0. At 2α = 2 that reason is false
+/// (1/Γ(−1) = 0: the pointwise force vanishes); the obstruction is the memory itself, which sums x
+/// extended by 0 before t = 0: its second difference kicks the first step with −R x(0)/h², an
+/// impulse −R x(0)/h that grows without bound as h → 0 (the discrete x(0)δ'(t)).
+std::string riemann_liouville_obstruction(double damping_order);
+
 }  // namespace fracvi
