@@ -162,20 +162,8 @@ Status CqMidpointStepper::advance() {
     rhs_ = h_ * p_plus_;
     if (k == 0) dx_ = h_ * problem_.v0;
     const NewtonReport report = newton_.solve(xk, t_half, rhs_, f_ptr, dx_);
-    set_iterations(report.iterations);
-    if (report.status == Status::kNonFinite) {
-      return fail(Status::kNonFinite, "non-finite Newton residual or iterate");
-    }
-    if (report.singular) {
-      return fail(Status::kNewtonFailure,
-                  "the Newton matrix M + (h^2/4) Hess U could not be factored (singular)");
-    }
-    if (report.status == Status::kNewtonFailure) {
-      return fail(Status::kNewtonFailure,
-                  "Newton did not converge within %d iterations (last correction %.3e > "
-                  "tolerance %.3e)",
-                  report.iterations, report.correction, report.tolerance);
-    }
+    if (const Status s = newton_outcome(report, "M + (h^2/4) Hess U"); s != Status::kSuccess)
+      return s;
     // p⁻_{k+1} = 2MΔ_k/h − p⁺_k (the two one-sided momenta average to M Δ_k/h).
     mass_.multiply(dx_, p_minus_);
     p_minus_ = p_minus_ * (2.0 / h_) - p_plus_;  // one pass, the same roundings as *= then -=

@@ -142,21 +142,9 @@ class EulerStepper final : public Stepper {
       rhs_ *= 2.0;
       dx_ = (2.0 * h_) * v_;  // predictor Δ' = 2 h v_k
       const NewtonReport report = newton_.solve(x_, t, rhs_, f_ptr, dx_);
-      set_iterations(report.iterations);
-      if (report.status == Status::kNonFinite) {
-        return fail(Status::kNonFinite, "non-finite Newton residual or iterate");
-      }
-      if (report.singular) {
-        return fail(Status::kNewtonFailure,
-                    "the Newton matrix M + a h^-2alpha R + h^2 Hess U could not be factored "
-                    "(singular)");
-      }
-      if (report.status == Status::kNewtonFailure) {
-        return fail(Status::kNewtonFailure,
-                    "Newton did not converge within %d iterations (last correction %.3e > "
-                    "tolerance %.3e)",
-                    report.iterations, report.correction, report.tolerance);
-      }
+      if (const Status s = newton_outcome(report, "M + a h^-2alpha R + h^2 Hess U");
+          s != Status::kSuccess)
+        return s;
       dx_ *= 0.5;
       x_next_ = x_ + dx_;
       v_next_ = dx_ * (1.0 / h_);

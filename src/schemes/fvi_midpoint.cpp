@@ -181,21 +181,9 @@ Status TrapezoidalMidpointStepper::advance() {
   if (damped_) rhs_ -= (h_ * h_) * g_hat_;
   if (k == 0) dx_ = h_ * problem_.v0;  // predictor; afterwards the previous increment
   const NewtonReport report = newton_.solve(xk, t_half, rhs_, f_ptr, dx_);
-  set_iterations(report.iterations);
-  if (report.status == Status::kNonFinite) {
-    return fail(Status::kNonFinite, "non-finite Newton residual or iterate");
-  }
-  if (report.singular) {
-    return fail(Status::kNewtonFailure,
-                "the Newton matrix M + (h^2/2) w0 h^-2alpha R + (h^2/4) Hess U could not be "
-                "factored (singular)");
-  }
-  if (report.status == Status::kNewtonFailure) {
-    return fail(Status::kNewtonFailure,
-                "Newton did not converge within %d iterations (last correction %.3e > tolerance "
-                "%.3e)",
-                report.iterations, report.correction, report.tolerance);
-  }
+  if (const Status s = newton_outcome(report, "M + (h^2/2) w0 h^-2alpha R + (h^2/4) Hess U");
+      s != Status::kSuccess)
+    return s;
   x_next_ = xk + dx_;
   if (!x_next_.allFinite()) return fail(Status::kNonFinite, "non-finite position");
 

@@ -175,20 +175,8 @@ class PiTrapezoidStepper final : public Stepper {
     rhs_ *= 2.0;
     dx_ = (2.0 * h_) * v_;  // predictor Δ' = 2 h v_{n−1}
     const NewtonReport report = newton_.solve(x_, t, rhs_, f_ptr, dx_);
-    set_iterations(report.iterations);
-    if (report.status == Status::kNonFinite) {
-      return fail(Status::kNonFinite, "non-finite Newton residual or iterate");
-    }
-    if (report.singular) {
-      return fail(Status::kNewtonFailure,
-                  "the Newton matrix M + s R + (h^2/6) Hess U could not be factored (singular)");
-    }
-    if (report.status == Status::kNewtonFailure) {
-      return fail(Status::kNewtonFailure,
-                  "Newton did not converge within %d iterations (last correction %.3e > "
-                  "tolerance %.3e)",
-                  report.iterations, report.correction, report.tolerance);
-    }
+    if (const Status s = newton_outcome(report, "M + s R + (h^2/6) Hess U"); s != Status::kSuccess)
+      return s;
     x_next_ = x_ + 0.5 * dx_;
     if (!x_next_.allFinite()) return fail(Status::kNonFinite, "non-finite position");
     const auto row = static_cast<Eigen::Index>(n);

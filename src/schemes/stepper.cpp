@@ -5,6 +5,8 @@
 #include <exception>
 #include <limits>
 
+#include "fracvi/solve/midpoint_newton.hpp"
+
 namespace fracvi {
 
 Status Stepper::step() noexcept {
@@ -28,6 +30,24 @@ Status Stepper::fail(Status status, const char* format, ...) noexcept {
   std::vsnprintf(message_.data(), message_.size(), format, args);
   va_end(args);
   return status;
+}
+
+Status Stepper::newton_outcome(const internal::NewtonReport& report, const char* matrix) noexcept {
+  set_iterations(report.iterations);
+  if (report.status == Status::kNonFinite) {
+    return fail(Status::kNonFinite, "non-finite Newton residual or iterate");
+  }
+  if (report.singular) {
+    return fail(Status::kNewtonFailure, "the Newton matrix %s could not be factored (singular)",
+                matrix);
+  }
+  if (report.status == Status::kNewtonFailure) {
+    return fail(Status::kNewtonFailure,
+                "Newton did not converge within %d iterations (last correction %.3e > tolerance "
+                "%.3e)",
+                report.iterations, report.correction, report.tolerance);
+  }
+  return Status::kSuccess;
 }
 
 double Stepper::mirror_error(const RowMatrixXd&, std::span<const std::size_t>) const {

@@ -30,6 +30,10 @@
 
 namespace fracvi {
 
+namespace internal {
+struct NewtonReport;  // fracvi/solve/midpoint_newton.hpp
+}  // namespace internal
+
 class Stepper {
  public:
   virtual ~Stepper() = default;
@@ -86,6 +90,10 @@ class Stepper {
   /// Records a failure (printf-style cause) and returns its status.
   Status fail(Status status, const char* format, ...) noexcept;
   void set_iterations(int iterations) noexcept { last_iterations_ = iterations; }
+  /// One MidpointNewton solve as the step's outcome: records its iterations and returns kSuccess,
+  /// or the failure with its message — non-finite values, "the Newton matrix <matrix> could not
+  /// be factored (singular)", or the iteration limit with the last correction and tolerance.
+  Status newton_outcome(const internal::NewtonReport& report, const char* matrix) noexcept;
 
  private:
   std::array<char, 200> message_{};
