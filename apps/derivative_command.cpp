@@ -39,7 +39,8 @@ Command add_derivative_command(CLI::App& parent) {
       "Print t and the Riemann-Liouville derivative D^ALPHA f(t) on [A, B] (the paper's RL: left "
       "= D_-, memory of the past from A; right = D_+, memory of the future from B, with "
       "D^1_+ f = -f'), 17 significant digits per line. Accurate to about 1e-12 relative for "
-      "smooth f.");
+      "smooth f, also with an integrable singularity at the terminal (log t at A = 0); a "
+      "non-integrable one (1/t) is refused.");
   app->add_option("--alpha", opt->alpha, "order ALPHA in [0, 1]")->required();
   app->add_option("--side", opt->side, "left (D_-) or right (D_+)")->default_val("left");
   app->add_option("--f", opt->f, "the function: a formula in t, e.g. \"sin(t)\"")->required();

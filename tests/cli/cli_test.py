@@ -669,9 +669,26 @@ class Robustness(unittest.TestCase):
                       "need 32 TB, more than this machine's memory"],
                      "run", "--out", out, "--set", "model.dim=1000000000000")
 
+    def test_integrable_endpoint_singularity_in_derivative(self):
+        # Issue 14 item 6: D^(1/2) log t was -inf with exit 0. Closed form (left, from 0):
+        # t^(-a)/Gamma(1-a) (log t + psi(1) - psi(1-a)); the right side mirrored.
+        exact = "t^(-0.5)/sqrt(pi)*(log(t) - 0.5772156649015329 + 1.9635100260214235)"
+        r = run("derivative", "--alpha", "0.5", "--f", "log(t)", "--a", "0", "--b", "1",
+                "--t", "0.1,0.5,1", "--exact", exact)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        for line in r.stdout.strip().splitlines():
+            t, value, reference, difference = map(float, line.split())
+            self.assertLess(abs(difference), 1e-13 * abs(reference), line)
+        r = run("derivative", "--alpha", "0.5", "--side", "right", "--f", "log(1-t)", "--a", "0",
+                "--b", "1", "--t", "0.5", "--exact",
+                "(1-t)^(-0.5)/sqrt(pi)*(log(1-t) - 0.5772156649015329 + 1.9635100260214235)")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertLess(abs(float(r.stdout.split()[3])), 1e-13)
+
     def test_singular_function_in_derivative(self):
+        # Not integrable at the terminal: refused, not the number the quadrature stopped at.
         self.refused(["fracvi derivative: --f = \"1/t\": the quadrature of D^alpha f(0.5) failed",
-                      "singular"],
+                      "f is not integrable at the terminal 0"],
                      "derivative", "--alpha", "0.5", "--f", "1/t", "--a", "0", "--b", "1",
                      "--t", "0.5")
 
