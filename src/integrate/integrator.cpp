@@ -171,6 +171,7 @@ struct Integrator::Impl {
     sol.save_every = options.save_every;
     sol.linear_solver = std::string(to_string(stepper->linear_solver()));
     sol.history_bytes = stepper->history_bytes();
+    sol.history = std::string(stepper->history_kind());
     if (options.diagnostics) {
       e0 = energy(0);
       energy_k = e0;

@@ -239,6 +239,7 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
       {"newton_iterations", s.newton_iterations},
       {"max_newton_iterations_per_step", s.max_newton_iterations_per_step},
       {"linear_solver", s.linear_solver},
+      {"history", s.history},
       {"save_every", s.save_every},
       {"wall_seconds", s.wall_time_seconds},
       {"method", s.method},

@@ -58,6 +58,9 @@ class CqMidpointStepper final : public Stepper {
   [[nodiscard]] std::size_t history_bytes() const override {
     return history_ ? history_->memory_bytes() : 0;
   }
+  [[nodiscard]] std::string_view history_kind() const override {
+    return history_ ? history_->kind() : "none";
+  }
 
  private:
   Status advance() override;

@@ -88,6 +88,9 @@ class EulerStepper final : public Stepper {
   [[nodiscard]] std::size_t history_bytes() const override {
     return history_ ? history_->memory_bytes() : 0;
   }
+  [[nodiscard]] std::string_view history_kind() const override {
+    return history_ ? history_->kind() : "none";
+  }
 
  private:
   // z̃ = x − x_0 or v − v_0 (Caputo, γ > 0), else x or v.

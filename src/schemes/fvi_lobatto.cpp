@@ -435,6 +435,9 @@ class LobattoStepper final : public Stepper {
   [[nodiscard]] std::size_t history_bytes() const override {
     return history_ ? history_->memory_bytes() : 0;
   }
+  [[nodiscard]] std::string_view history_kind() const override {
+    return history_ ? history_->kind() : "none";
+  }
   [[nodiscard]] const Eigen::MatrixXd* stage_values() const override {
     return n_ > 0 ? &cur_.stages : nullptr;
   }

@@ -101,6 +101,9 @@ class TrapezoidalMidpointStepper final : public Stepper {
   [[nodiscard]] std::size_t history_bytes() const override {
     return memory_ ? memory_->memory_bytes() : 0;
   }
+  [[nodiscard]] std::string_view history_kind() const override {
+    return memory_ ? memory_->kind() : "none";
+  }
   [[nodiscard]] double mirror_error(const RowMatrixXd& x,
                                     std::span<const std::size_t> steps) const override;
 

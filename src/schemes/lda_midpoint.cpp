@@ -84,6 +84,9 @@ class LdaMidpointStepper final : public Stepper {
   [[nodiscard]] std::size_t history_bytes() const override {
     return memory_ ? memory_->memory_bytes() : 0;
   }
+  [[nodiscard]] std::string_view history_kind() const override {
+    return memory_ ? memory_->kind() : "none";
+  }
 
  private:
   Status advance() override {

@@ -69,6 +69,9 @@ class NodeAveragedTrapezoid {
       average_->push(part_);
     }
   }
+  [[nodiscard]] std::string_view kind() const {
+    return difference_ ? difference_->kind() : (average_ ? average_->kind() : "none");
+  }
   [[nodiscard]] std::size_t memory_bytes() const {
     return (difference_ ? difference_->memory_bytes() : 0) +
            (average_ ? average_->memory_bytes() : 0);

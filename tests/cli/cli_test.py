@@ -321,6 +321,22 @@ class Run(unittest.TestCase):
                          ["fractional-duffing-model.alpha=0.6-time.end=1-time.steps=100",
                           "fractional-duffing-model.alpha=0.7-time.end=1-time.steps=100"])
 
+    def test_summary_says_which_history_ran(self):
+        # Issue 14 item 8: summary.json names the damping memory "auto" chose.
+        for setting, expected, *extra in (('method.history="direct"', "direct"),
+                                  ('method.history="fast"', "fast"),
+                                  ("model.damping=0", "none"),
+                                  ("model.alpha=0.5", "none"),  # fvi-gl: R(x_k - x_(k-1))/h
+                                  ('method.scheme="fvi-bdf2"', "direct"),  # auto: short run
+                                  ("model.alpha=0.5", "local", 'method.scheme="fvi-bdf2"')):
+            out = os.path.join(self.dir, "hist")
+            r = run("run", "--out", out, "--no-plot", "--quiet", "--set", setting, "--set",
+                    "time.end=1", "--set", "time.steps=100",
+                    *(["--set", extra[0]] if extra else []))
+            self.assertEqual(r.returncode, 0, r.stderr)
+            with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+                self.assertEqual(json.load(f)["history"], expected, setting)
+
     def test_problem_file_every_and_default_directory(self):
         path = self.write(PROBLEM + "[output]\nevery = 100\n")
         r = subprocess.run([FRACVI, "run", path, "--no-plot"], capture_output=True, text=True,

@@ -76,6 +76,8 @@ struct Solution {
   std::size_t save_every = 1;     ///< IntegratorOptions::save_every of the run
   std::string linear_solver;      ///< factorisation used: "dense", "banded" or "sparse"
   std::size_t history_bytes = 0;  ///< memory of the damping history (History::memory_bytes)
+  /// The damping memory used: "direct", "fast", "local" or "none" (what "auto" chose).
+  std::string history = "none";
 
   /// max_k ‖y_k − x_{N−k}‖_∞ from the independent backward run of the mirror equation
   /// (`DiscEqs`, second line); NaN if not computed (disabled, or the run did not succeed).

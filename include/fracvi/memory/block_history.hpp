@@ -27,6 +27,7 @@
 #include <Eigen/Dense>
 #include <cstddef>
 #include <memory>
+#include <string_view>
 
 #include "fracvi/fractional/runge_kutta_cq.hpp"
 #include "fracvi/memory/history.hpp"
@@ -57,6 +58,8 @@ class BlockHistory {
   [[nodiscard]] virtual RungeKuttaCq quadrature() const = 0;
   /// Bytes of state this history keeps (blocks, weights, recursions).
   [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
+  /// "direct", "fast" or "local": what method.history = "auto" chose (summary.json's history).
+  [[nodiscard]] virtual std::string_view kind() const = 0;
   /// Threads for the work over degrees of freedom (0 = OpenMP's default). Only the fast history
   /// uses them (from kParallelWork multiply–adds per step); the direct one ignores it.
   virtual void set_threads(int threads) { static_cast<void>(threads); }
@@ -76,6 +79,7 @@ class DirectBlockHistory final : public BlockHistory {
   [[nodiscard]] Eigen::Index dimension() const override { return dimension_; }
   [[nodiscard]] int stages() const override { return quadrature_.stages; }
   [[nodiscard]] RungeKuttaCq quadrature() const override { return quadrature_; }
+  [[nodiscard]] std::string_view kind() const override { return "direct"; }
   [[nodiscard]] std::size_t memory_bytes() const override {
     return (weights_.data().size() + values_.size()) * sizeof(double);
   }
@@ -111,6 +115,7 @@ class FastBlockHistory final : public BlockHistory {
   [[nodiscard]] RungeKuttaCq quadrature() const override {
     return {tail_->stages, tail_->order, lag_};
   }
+  [[nodiscard]] std::string_view kind() const override { return "fast"; }
   [[nodiscard]] std::size_t memory_bytes() const override {
     return static_cast<std::size_t>(ring_.size() + state_.size() + sum_.size() + head_.size() +
                                     right_.size() + left_.size() + decay_.size()) *

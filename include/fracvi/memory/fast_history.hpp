@@ -22,6 +22,7 @@
 #include <Eigen/Dense>
 #include <cstddef>
 #include <memory>
+#include <string_view>
 
 #include "fracvi/fractional/exponential_fit.hpp"
 #include "fracvi/memory/history.hpp"
@@ -48,6 +49,7 @@ class FastHistory final : public History {
   void clear() override;
   [[nodiscard]] std::size_t size() const override { return size_; }
   [[nodiscard]] std::size_t capacity() const override { return capacity_; }
+  [[nodiscard]] std::string_view kind() const override { return "fast"; }
   [[nodiscard]] std::size_t memory_bytes() const override {
     return static_cast<std::size_t>(ring_.size() + state_.size() + tail_.size() + sum_.size() +
                                     head_reversed_.size() + decay_.size() + weights_.size()) *

@@ -55,6 +55,8 @@ class History {
   /// Bytes of state this history keeps (values, weights, recursions): N·d·8 for the direct sum,
   /// (K + 2n0 + 1)·d·8 plus the weights for the fast one.
   [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
+  /// "direct", "fast" or "local": what method.history = "auto" chose (summary.json's history).
+  [[nodiscard]] virtual std::string_view kind() const = 0;
   /// Threads for the work over degrees of freedom (0 = OpenMP's default). Only the fast history
   /// has enough work per step to use them; the others ignore it.
   virtual void set_threads(int threads) { static_cast<void>(threads); }
@@ -74,6 +76,7 @@ class DirectHistory final : public History {
   void clear() override { size_ = 0; }
   [[nodiscard]] std::size_t size() const override { return size_; }
   [[nodiscard]] std::size_t capacity() const override { return weights_.size(); }
+  [[nodiscard]] std::string_view kind() const override { return "direct"; }
   [[nodiscard]] std::size_t memory_bytes() const override {
     return (weights_.size() + values_.size()) * sizeof(double);
   }
@@ -105,6 +108,7 @@ class LocalHistory final : public History {
   void clear() override { size_ = 0; }
   [[nodiscard]] std::size_t size() const override { return size_; }
   [[nodiscard]] std::size_t capacity() const override;
+  [[nodiscard]] std::string_view kind() const override { return "local"; }
   [[nodiscard]] std::size_t memory_bytes() const override {
     return static_cast<std::size_t>(window_.size()) * sizeof(double);
   }

@@ -75,6 +75,9 @@ class Stepper {
   [[nodiscard]] virtual LinearSolver linear_solver() const = 0;
   /// Bytes kept by the memory of the damping term (0 without one).
   [[nodiscard]] virtual std::size_t history_bytes() const { return 0; }
+  /// The damping memory's implementation: "direct", "fast", "local" or "none" (what
+  /// method.history = "auto" chose; Solution::history).
+  [[nodiscard]] virtual std::string_view history_kind() const { return "none"; }
   /// Newton iterations of the last step (1 for a linear problem; 0 for an explicit step).
   [[nodiscard]] int last_iterations() const { return last_iterations_; }
 
