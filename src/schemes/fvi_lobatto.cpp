@@ -927,7 +927,7 @@ std::string lobatto_applicability(const InitialValueProblem& problem) {
 // 2s − 2 where the solution is smooth at t_0 (integer 2α: the RKCQ is exact and local, or R = 0);
 // 2 for fractional damping, where x − P = O(t^{2+…}) with non-smooth powers and the pointwise
 // forcing at t_0 cap the order (fvi_lobatto.md §7.3–7.4: 3.5 for s = 3, 4 at 2α = 0.6, 2–2.4 at
-// 2α = 1.5; the Lubich correction weights that would lift it are not implemented).
+// 2α = 1.5; Lubich correction weights in their direct form lower it instead: fvi_lobatto.md §13).
 //
 // s = 2 with 1 < 2α < 2: the positions keep order 2, but the node momentum p_{n+1} = F_{n,2}
 // carries h b_2 R G_{n,2}, the RKCQ's stage value of D^{2α}x, whose error near t_0 is of order

@@ -311,21 +311,8 @@ const SchemeInfo kFviMidpoint{
     // 2α = 2: the trapezoidal CQ of s² has a double pole at ζ = −1, so the momenta amplify
     // position round-off linearly in N (measured: docs/theory/fvi_midpoint.md); fvi-gl and
     // fvi-bdf2 are local there.
-    .applicability =
-        [](const InitialValueProblem& problem) {
-          const double beta = problem.model.damping_order();
-          if (beta < 2.0 || problem.model.is_undamped()) return std::string();
-          return std::string(
-              "model.alpha = 1 (2alpha = 2) is outside 0 <= 2alpha < 2: the trapezoidal "
-              "damping of order 2 amplifies round-off in the momenta; use fvi-gl or fvi-bdf2");
-        },
-    .stability =
-        [](const InitialValueProblem&) {
-          return StabilityBound{.stable = true,
-                                .largest_step = std::numeric_limits<double>::infinity(),
-                                .sharp = true,
-                                .rule = "implicit damping: stable for every h"};
-        },
+    .applicability = trapezoid_applicability,
+    .stability = implicit_damping_bound,
     .make_stepper = [](const InitialValueProblem& problem,
                        const IntegratorOptions& options) -> std::unique_ptr<Stepper> {
       return std::make_unique<TrapezoidalMidpointStepper>(problem, options);

@@ -195,22 +195,8 @@ const SchemeInfo kLdaMidpoint{
         "stable for every h (implicit damping; the Tustin image of the continuous "
         "characteristic equation)",
     .declared_order = [](const MechanicalModel&) { return 2; },
-    .applicability =
-        [](const InitialValueProblem& problem) {
-          if (problem.model.damping_order() < 2.0 || problem.model.is_undamped()) {
-            return std::string();
-          }
-          return std::string(
-              "model.alpha = 1 (2alpha = 2) is outside 0 <= 2alpha < 2: the trapezoidal damping "
-              "of order 2 amplifies round-off in the momenta; use fvi-gl or fvi-bdf2");
-        },
-    .stability =
-        [](const InitialValueProblem&) {
-          return StabilityBound{.stable = true,
-                                .largest_step = std::numeric_limits<double>::infinity(),
-                                .sharp = true,
-                                .rule = "implicit damping: stable for every h"};
-        },
+    .applicability = trapezoid_applicability,
+    .stability = implicit_damping_bound,
     .make_stepper = [](const InitialValueProblem& problem,
                        const IntegratorOptions& options) -> std::unique_ptr<Stepper> {
       return std::make_unique<LdaMidpointStepper>(problem, options);

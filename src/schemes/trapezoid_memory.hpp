@@ -17,6 +17,10 @@
 //   x_0 term: Riemann–Liouville, 0 < β < 1: D^β 1 = τ^{−β}/Γ(1−β) → Φ = τ^{1−β}/Γ(2−β).
 #pragma once
 
+#include <limits>
+#include <string>
+#include "fracvi/schemes/registry.hpp"
+
 #include <Eigen/Dense>
 #include <boost/math/special_functions/gamma.hpp>
 #include <cmath>
@@ -128,5 +132,18 @@ class TaylorCellForce {
   double phi_v_ = 0.0, pv_ = 0.0, phi_x_ = 0.0, px_ = 0.0;
   Eigen::VectorXd r_x0_, r_v0_;
 };
+
+// The registry rules both trapezoidal-damping schemes (fvi-midpoint, lda-midpoint) share.
+inline std::string trapezoid_applicability(const InitialValueProblem& problem) {
+  if (problem.model.damping_order() < 2.0 || problem.model.is_undamped()) return {};
+  return "model.alpha = 1 (2alpha = 2) is outside 0 <= 2alpha < 2: the trapezoidal damping of "
+         "order 2 amplifies round-off in the momenta; use fvi-gl or fvi-bdf2";
+}
+inline StabilityBound implicit_damping_bound(const InitialValueProblem&) {
+  return StabilityBound{.stable = true,
+                        .largest_step = std::numeric_limits<double>::infinity(),
+                        .sharp = true,
+                        .rule = "implicit damping: stable for every h"};
+}
 
 }  // namespace fracvi::internal
