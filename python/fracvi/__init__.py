@@ -517,8 +517,10 @@ class BvpSolution:
 
     @property
     def scheme(self):
-        """The scheme whose Δ^α_± were used ([method] scheme)."""
-        return self.problem.scheme
+        """The scheme whose Δ^α_± were used ([method] scheme; "auto" takes fvi-gl for a boundary
+        value problem, as `fracvi bvp` does)."""
+        scheme = self.problem.scheme
+        return "fvi-gl" if scheme == "auto" else scheme
 
     @property
     def dim(self):

@@ -74,26 +74,9 @@ def _title(meta, what):
     return f"{problem.get('name', '')}: {what}{order}\nreference: {meta.get('reference', '')}"
 
 
-def plot_work_precision(table, meta, path):
-    names = _schemes(table)
-    style = _styles(names)
-    fig = _figure(figsize=(9, 6))
-    ax = fig.subplots()
-    for n in names:
-        sel = (table["scheme"] == n) & (table["status"] == "success") & (table["max_error"] > 0)
-        if sel.any():
-            ax.loglog(table["wall_seconds"][sel], table["max_error"][sel], "-", label=n,
-                      **style[n])
-    ax.set_xlabel("wall time of the integration [s]")
-    ax.set_ylabel(r"$\max_k \|x_k - x_{\mathrm{ref}}(t_k)\|_\infty$")
-    ax.set_title(_title(meta, "work–precision"), fontsize=10)
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(loc="best", fontsize=8, ncol=2)
-    fig.tight_layout()
-    fig.savefig(path)
-
-
-def plot_error_vs_steps(table, meta, path):
+def _error_figure(table, meta, path, x_column, xlabel, what, slopes):
+    """Log–log max error against `x_column`, one line per scheme's successful runs; with
+    `slopes`, a dotted line of the declared order through each scheme's coarsest point."""
     names = _schemes(table)
     style = _styles(names)
     fig = _figure(figsize=(9, 6))
@@ -102,20 +85,29 @@ def plot_error_vs_steps(table, meta, path):
         sel = (table["scheme"] == n) & (table["status"] == "success") & (table["max_error"] > 0)
         if not sel.any():
             continue
-        steps, err = table["steps"][sel], table["max_error"][sel]
-        ax.loglog(steps, err, "-", label=n, **style[n])
+        x, err = table[x_column][sel], table["max_error"][sel]
+        ax.loglog(x, err, "-", label=n, **style[n])
         p = int(table["declared_order"][sel][0])
         # An adaptive scheme's error follows its tolerances, not N: no slope to draw.
-        if p > 0 and len(steps) > 1 and n not in meta.get("adaptive", ()):  # the declared slope through the coarsest point
-            ax.loglog(steps, err[0] * (steps / steps[0]) ** (-p), ":", color=style[n]["color"],
-                      lw=0.8)
-    ax.set_xlabel("steps N")
+        if slopes and p > 0 and len(x) > 1 and n not in meta.get("adaptive", ()):
+            ax.loglog(x, err[0] * (x / x[0]) ** (-p), ":", color=style[n]["color"], lw=0.8)
+    ax.set_xlabel(xlabel)
     ax.set_ylabel(r"$\max_k \|x_k - x_{\mathrm{ref}}(t_k)\|_\infty$")
-    ax.set_title(_title(meta, "error against N (dotted: declared order)"), fontsize=10)
+    ax.set_title(_title(meta, what), fontsize=10)
     ax.grid(alpha=0.3, which="both")
     ax.legend(loc="best", fontsize=8, ncol=2)
     fig.tight_layout()
     fig.savefig(path)
+
+
+def plot_work_precision(table, meta, path):
+    _error_figure(table, meta, path, "wall_seconds", "wall time of the integration [s]",
+                  "work–precision", slopes=False)
+
+
+def plot_error_vs_steps(table, meta, path):
+    _error_figure(table, meta, path, "steps", "steps N",
+                  "error against N (dotted: declared order)", slopes=True)
 
 
 def read_energy(path):

@@ -211,8 +211,9 @@ def test_run_options():
     fast = fracvi.integrate(problem, history="fast")  # sum-of-exponentials tail, ε = 1e-10
     assert np.max(np.abs(fast.x - base.x)) <= 1e-10 * np.max(np.abs(base.x))
     assert not np.array_equal(fast.x, base.x)
-    euler = fracvi.integrate(problem, start="euler")
-    assert not np.array_equal(euler.x, base.x)
+    # start applies to the midpoint-type schemes (fvi-gl here; the default is fvi-lobatto3).
+    euler = fracvi.integrate(problem, start="euler", scheme="fvi-gl")
+    assert not np.array_equal(euler.x, fracvi.integrate(problem, scheme="fvi-gl").x)
     for bad, needle in ((dict(history="fastest"), "history"), (dict(start="rk"), "start"),
                         (dict(newton_absolute_tolerance=-1.0), "absolute")):
         with pytest.raises(ValueError, match=needle):
@@ -223,7 +224,7 @@ def test_run_options():
 
 def test_solution_fields():
     sol = fracvi.integrate(fracvi.Problem.from_toml(PROBLEM))
-    assert sol.method == "fvi-gl" and sol.declared_order == 1
+    assert sol.method == "fvi-lobatto3" and sol.declared_order == 4  # scheme "auto"
     assert sol.newton_iterations >= sol.steps and sol.max_newton_iterations_per_step >= 2
     assert sol.wall_time > 0 and sol.problem.name == "cli-test"
     assert sol.max_balance_error == np.max(np.abs(sol.balance))

@@ -119,8 +119,18 @@ void check_velocity_hessian(const Lagrangian& lagrangian, double t,
   }
 }
 
+namespace {
+
+// The scheme of a boundary value problem: "auto" takes the paper's scheme, the one with the full
+// BVP theory (RestDiscVarPrin).
+std::string_view boundary_value_scheme(const ProblemSpec& spec) {
+  return spec.scheme == kAutoScheme ? fvi_gl().name() : std::string_view(spec.scheme);
+}
+
+}  // namespace
+
 CqScheme boundary_value_quadrature(const ProblemSpec& spec) {
-  const SchemeInfo* info = find_scheme(spec.scheme);
+  const SchemeInfo* info = find_scheme(boundary_value_scheme(spec));
   if (info == nullptr) {
     throw ValidationError("method.scheme = \"" + spec.scheme +
                           "\" is not a known scheme (available: " + scheme_names() + ")");
@@ -280,7 +290,7 @@ nlohmann::json make_bvp_summary(const ProblemSpec& spec, const BvpSolution& s) {
       {"status", s.ok() ? "success" : std::string(to_string(s.status))},
       {"message", s.message},
       {"steps", n},
-      {"scheme", spec.scheme},
+      {"scheme", std::string(boundary_value_scheme(spec))},
       {"action_sum", s.sum},
       {"residual_norm", json_number(s.residual_norm)},
       {"residual_floor", json_number(s.residual_floor)},

@@ -583,10 +583,11 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   // [method]
   if (const auto* n = r.find("method", "scheme")) {
     p.scheme = r.string(*n, "method.scheme");
-    if (find_scheme(p.scheme) == nullptr) {
+    if (p.scheme != kAutoScheme && find_scheme(p.scheme) == nullptr) {
       std::vector<std::string> known;
       for (const SchemeInfo* info : registered_schemes()) known.emplace_back(info->name);
-      r.fail("method.scheme", "= \"" + p.scheme + "\" is not a known scheme (available: " +
+      known.emplace_back(kAutoScheme);
+      r.fail("method.scheme", "= \"" + p.scheme + "\" is not a known scheme (available: auto, " +
                                   scheme_names() + ")" + did_you_mean(p.scheme, known));
     }
   }
@@ -849,7 +850,8 @@ end = 60.0
 steps = 6000
 
 [method]
-scheme = "fvi-gl"
+# "auto": fvi-lobatto3 here (docs/comparison.md, "The default scheme"); "fvi-gl" is the paper's.
+scheme = "auto"
 newton_tolerance = 1e-12
 newton_max_iterations = 50
 history = "auto"

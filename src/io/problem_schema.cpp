@@ -164,7 +164,9 @@ std::vector<ProblemField> make_schema() {
        [](P p) { return Json(static_cast<std::int64_t>(p.steps)); }},
       // Written as steps (the reader refuses both).
       {"time", "step", "number", "", "h", FRACVI_BINDING(InitialValueProblem, steps), nullptr},
-      {"method", "scheme", "string", in_quotes(d.scheme), "a name from the method registry",
+      {"method", "scheme", "string", in_quotes(d.scheme),
+       "a name from the method registry, or \"auto\": the first of fvi-lobatto3, "
+       "fvi-midpoint, fvi-bdf2, fvi-gl that applies and is stable at the step",
        FRACVI_BINDING(Method, name), [](P p) { return Json(p.scheme); }},
       {"method", "newton_tolerance", "number", format_number(d.newton_tolerance),
        "relative Newton tolerance", FRACVI_BINDING(NewtonOptions, relative_tolerance),

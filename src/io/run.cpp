@@ -29,14 +29,16 @@ PreparedRun prepare_run(ProblemSpec spec) {
     run.problem = spec.lagrangian.empty() ? make_initial_value_problem(spec)
                                           : make_lagrangian_initial_value_problem(spec);
     run.options = make_integrator_options(spec);
-    const auto method = parse_method(spec.scheme);
+    validate(run.problem);
+    validate(run.options);
+    const bool automatic = spec.scheme == kAutoScheme;
+    const auto method = automatic ? std::optional<Method>(choose_scheme(run.problem, run.options))
+                                  : parse_method(spec.scheme);
     if (!method) {  // the reader accepts only registered names; a spec built in code may not
       throw ProblemFileError(source + ": method.scheme = \"" + spec.scheme +
                              "\" is not a known scheme (available: " + scheme_names() + ")");
     }
     run.method = *method;
-    validate(run.problem);
-    validate(run.options);
     check_applicable(run.problem, run.method, run.options);
     check_storage(run.problem, run.options);
     run.spec = std::move(spec);

@@ -143,4 +143,24 @@ void check_applicable(const InitialValueProblem& problem, const Method& method,
                         std::string(info.name) + ": " + bound.rule + advice);
 }
 
+std::string_view auto_scheme_rule() {
+  return "the first of fvi-lobatto3, fvi-midpoint, fvi-bdf2, fvi-gl that applies to the problem "
+         "and is stable at its step (docs/comparison.md)";
+}
+
+Method choose_scheme(const InitialValueProblem& problem, const IntegratorOptions& options) {
+  const SchemeInfo* const candidates[] = {&internal::kFviLobatto3, &internal::kFviMidpoint,
+                                          &internal::kFviBdf2, &internal::kFviGl};
+  for (std::size_t i = 0; i < std::size(candidates); ++i) {
+    const Method method(*candidates[i]);
+    try {
+      check_applicable(problem, method, options);
+      return method;
+    } catch (const ValidationError&) {
+      if (i + 1 == std::size(candidates)) throw;  // none applies: the paper's scheme's reason
+    }
+  }
+  return Method();  // unreachable
+}
+
 }  // namespace fracvi

@@ -326,7 +326,7 @@ class Run(unittest.TestCase):
         for setting, expected, *extra in (('method.history="direct"', "direct"),
                                   ('method.history="fast"', "fast"),
                                   ("model.damping=0", "none"),
-                                  ("model.alpha=0.5", "none"),  # fvi-gl: R(x_k - x_(k-1))/h
+                                  ("model.alpha=0.5", "none", 'method.scheme="fvi-gl"'),
                                   ('method.scheme="fvi-bdf2"', "direct"),  # auto: short run
                                   ("model.alpha=0.5", "local", 'method.scheme="fvi-bdf2"')):
             out = os.path.join(self.dir, "hist")
@@ -365,7 +365,7 @@ class Run(unittest.TestCase):
     # falls from rest at x = 1 into its singularity at t = 1.11 and the step jumps across it
     # (balance error 170 against E_0 = -1); U = -x1^4 from x = 1, v = 1 blows up in finite time
     # (t = 0.9) and 50 steps run through it (balance error 2e17). Both used to end "success".
-    # Each ends "inaccurate" with exit 1, the message naming the quantity, its value and the rule,
+    # With fvi-gl each ends "inaccurate" with exit 1, the message naming the quantity, its value and the rule,
     # and every row written; the same problems before the singularity are a success.
     SINGULAR = [
         ("coulomb", "-1/x1", "0.0", "5.0", 1000, "1.0"),
@@ -378,8 +378,10 @@ class Run(unittest.TestCase):
                 path = self.write(f'name = "{name}"\n[model]\ndim = 1\nmass = 1.0\nalpha = 0.5\n'
                                   f'potential = "{potential}"\n[initial]\nposition = [1.0]\n'
                                   f'velocity = [{velocity}]\n[time]\nend = {end}\n'
-                                  f'steps = {steps}\n')
+                                  f'steps = {steps}\n[method]\nscheme = "fvi-gl"\n')
                 out = os.path.join(self.dir, name)
+                # (fvi-gl: the explicit-memory scheme steps through the singularity; the default
+                # fvi-lobatto3's Newton fails there instead, also exit 1.)
                 # --quiet: no summary, but the failure is one line on stderr.
                 r = run("run", path, "--out", out + "-quiet", "--no-plot", "--quiet")
                 self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
@@ -664,13 +666,35 @@ class Methods(unittest.TestCase):
         with tempfile.TemporaryDirectory() as tmp:
             out = os.path.join(tmp, "never")
             r = run("run", "--out", out, "--set", "model.alpha=0.5", "--set", "model.damping=20",
-                    "--set", "time.end=6", "--set", "time.steps=30")
+                    "--set", "time.end=6", "--set", "time.steps=30", "--set",
+                    "method.scheme=fvi-gl")
             self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
             self.assertEqual(r.stdout, "")
             for needle in ("time.steps = 30", "stability bound of fvi-gl", "h < 0.1",
                            "time.steps >= 61"):
                 self.assertIn(needle, r.stderr)
             self.assertFalse(os.path.exists(out))
+
+
+    def test_auto_takes_the_first_scheme_that_applies_and_is_stable(self):
+        # "auto" (the default): fvi-lobatto3, else fvi-midpoint, else fvi-bdf2, else fvi-gl
+        # (docs/comparison.md). Stiff U = 50 x^2 at h = 0.6: h^2 lambda = 36 is beyond
+        # fvi-lobatto3's 8, so fvi-midpoint (stable for every h); 2alpha = 2: neither applies,
+        # fvi-bdf2 needs lambda(R) 4 h^0 < 1 (R = 0.2 yes, R = 0.25 no: then fvi-gl, R < M).
+        cases = ((("model.damping=0.3",), "fvi-lobatto3"),
+                 (("model.potential=50*x1^2", "time.end=6", "time.steps=10"), "fvi-midpoint"),
+                 (("model.alpha=1", "model.damping=0.2"), "fvi-bdf2"),
+                 (("model.alpha=1", "model.damping=0.25"), "fvi-gl"))
+        with tempfile.TemporaryDirectory() as tmp:
+            for settings, expected in cases:
+                out = os.path.join(tmp, expected)
+                args = [a for s in settings + ("time.end=6",) for a in ("--set", s)]
+                r = run("run", "--out", out, "--no-plot", "--quiet", *args)
+                self.assertEqual(r.returncode, 0, (settings, r.stderr))
+                with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+                    summary = json.load(f)
+                self.assertEqual(summary["method"], expected, settings)
+                self.assertEqual(summary["problem"]["method"]["scheme"], "auto")
 
 
 class Robustness(unittest.TestCase):

@@ -60,7 +60,7 @@ TEST(ProblemFile, DefaultsAndMatrixForms) {
   EXPECT_EQ(p.start, 0.0);
   EXPECT_EQ(p.steps, 20);
   EXPECT_DOUBLE_EQ(p.step(), 0.1);
-  EXPECT_EQ(p.scheme, "fvi-gl");
+  EXPECT_EQ(p.scheme, "auto");
   EXPECT_EQ(p.newton_tolerance, 1e-12);
   EXPECT_EQ(p.every, 1);
   const ProblemSpec full = parse(with("mass = 1.0", "mass = [[2, 0.5], [0.5, 1]]"));

@@ -124,7 +124,11 @@ TEST(ProblemSchema, OmittedFieldsTakeTheLibraryDefaults) {
   EXPECT_EQ(run.options.linear_solver, defaults.linear_solver);
   EXPECT_EQ(run.options.threads, defaults.threads);
   EXPECT_EQ(run.options.save_every, defaults.save_every);
-  EXPECT_EQ(run.method, fracvi::Method());
+  // The scheme: "auto" (docs/comparison.md), which is choose_scheme() of the C++ API; here the
+  // first candidate, fvi-lobatto3 (the C++ Method() default stays the paper's fvi-gl: a program
+  // names its scheme).
+  EXPECT_EQ(run.method, fracvi::choose_scheme(run.problem, run.options));
+  EXPECT_EQ(run.method.name(), "fvi-lobatto3");
 }
 
 // ---------------------------------------------------------------------------------------------

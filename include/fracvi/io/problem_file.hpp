@@ -83,7 +83,8 @@ struct ProblemSpec {
   [[nodiscard]] double step() const { return (end - start) / static_cast<double>(steps); }
 
   // [method]
-  std::string scheme = std::string(Method().name());             ///< the registry's default scheme
+  /// a registry name, or "auto" (the default: choose_scheme() picks it for the problem)
+  std::string scheme = std::string(kAutoScheme);
   double newton_tolerance = NewtonOptions{}.relative_tolerance;  // one default: core/newton_options
   int newton_max_iterations = NewtonOptions{}.max_iterations;
   /// "auto", "direct" or "fast" (the damping memory sum)

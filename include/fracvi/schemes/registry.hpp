@@ -142,4 +142,19 @@ CqScheme boundary_value_quadrature(const SchemeInfo& info);
 void check_applicable(const InitialValueProblem& problem, const Method& method,
                       const IntegratorOptions& options = {});
 
+/// `method.scheme = "auto"` (the problem files' default): the scheme is chosen for the problem by
+/// choose_scheme(). Not a registry name.
+inline constexpr std::string_view kAutoScheme = "auto";
+
+/// The rule of "auto" in words (docs, `fracvi methods`, messages).
+std::string_view auto_scheme_rule();
+
+/// The scheme "auto" runs: the first of fvi-lobatto3, fvi-midpoint, fvi-bdf2, fvi-gl that applies
+/// to `problem` with `options` (check_applicable: model, stability bound at this step, history,
+/// load). Chosen from the comparison study (docs/comparison.md): fvi-lobatto3 reaches a given
+/// accuracy at the least cost of the variational schemes on all five problems there; fvi-midpoint
+/// is stable for every h where it does not apply (0 <= 2α < 2); fvi-bdf2 covers 2α = 2. Throws the
+/// ValidationError of the last candidate when none applies.
+Method choose_scheme(const InitialValueProblem& problem, const IntegratorOptions& options = {});
+
 }  // namespace fracvi
