@@ -97,40 +97,25 @@ void report_invalid(const SweepSpec& sweep) {
   }
 }
 
-int finish(const char* where, Setup& setup, const SweepSpec& sweep, const Tally& tally,
-           std::size_t ran, double seconds, bool quiet) {
+// Rewrites the table in case order and reports it: every row counts, those of earlier runs too.
+int finish(const char* where, Setup& setup, const SweepSpec& sweep, std::size_t ran, double seconds,
+           bool quiet) {
   setup.table->finish();
+  Tally all{1 + sweep.parameters.size(), {}, 0};
+  for (const auto& [index, row] : setup.table->rows()) all.add(row);
   const std::size_t done = setup.table->done().size();
   const bool interrupted = done < sweep.cases.size();
   if (!quiet || interrupted) {
     std::fprintf(interrupted ? stderr : stdout,
-                 "fracvi sweep: %zu of %zu cases in %s (%s%s); ran %zu %s in %.3f s%s\n", done,
-                 sweep.cases.size(), setup.table->file().string().c_str(), tally.text().c_str(),
-                 done > ran ? (tally.by_status.empty() ? "earlier runs" : ", rest earlier") : "",
-                 ran, where, seconds, interrupted ? "; interrupted: continue with --resume" : "");
+                 "fracvi sweep: %zu of %zu cases in %s (%s); ran %zu %s in %.3f s, %zu from "
+                 "earlier runs%s\n",
+                 done, sweep.cases.size(), setup.table->file().string().c_str(), all.text().c_str(),
+                 ran, where, seconds, done - ran,
+                 interrupted ? "; interrupted: continue with --resume" : "");
   }
   // 130 as for a shell job ended by Ctrl-C; 1 when any case did not succeed.
   if (interrupted) return 130;
-  std::size_t failed = 0;
-  // The whole table counts, rows of earlier runs included.
-  std::FILE* f = std::fopen(setup.table->file().c_str(), "r");
-  if (f) {
-    Tally all{tally.status_column, {}, 0};
-    char* line = nullptr;
-    std::size_t cap = 0;
-    bool header = true;
-    while (getline(&line, &cap, f) > 0) {
-      if (header) {
-        header = false;
-        continue;
-      }
-      all.add(line);
-    }
-    std::free(line);
-    std::fclose(f);
-    failed = all.failures;
-  }
-  return failed == 0 ? kExitSuccess : kExitNumericalFailure;
+  return all.failures == 0 ? kExitSuccess : kExitNumericalFailure;
 }
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
@@ -168,7 +153,7 @@ int run_local(const SweepSpec& sweep, const std::string& file, const std::string
         &g_stop);
     std::signal(SIGINT, SIG_DFL);
   }
-  return finish("here", setup, sweep, tally, ran, seconds_since(start), quiet);
+  return finish("here", setup, sweep, ran, seconds_since(start), quiet);
 }
 
 #ifdef FRACVI_HAVE_MPI
@@ -246,7 +231,7 @@ int run_master(const SweepSpec& sweep, const std::string& file, const std::strin
   }
   std::signal(SIGINT, SIG_DFL);
   if (!setup) throw UsageError(setup_error);
-  return finish("on the MPI ranks", *setup, sweep, tally, ran, seconds_since(start), quiet);
+  return finish("on the MPI ranks", *setup, sweep, ran, seconds_since(start), quiet);
 }
 
 void run_worker(const SweepSpec& sweep, const std::filesystem::path& dir) {

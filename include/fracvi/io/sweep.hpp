@@ -130,6 +130,10 @@ class SweepTable {
 
   /// Cases whose row is in the table.
   [[nodiscard]] const std::set<std::size_t>& done() const { return done_; }
+  /// The rows (case, CSV line), in the order they came (case order after finish()).
+  [[nodiscard]] const std::vector<std::pair<std::size_t, std::string>>& rows() const {
+    return rows_;
+  }
   /// Appends the row of case `index` (thread-safe; one write(2)).
   void append(std::size_t index, const std::string& row);
   /// Rewrites results.csv in case order (atomically: temporary and rename).
