@@ -459,8 +459,10 @@ SweepSpec make_sweep(const Json& document, const std::string& source,
       s.base[section].erase(key);
     }
   }
+  // method.threads = 0 is the default ("all cores"), also what a resolved problem (Python's
+  // Problem.to_dict) writes: not a choice of the user's.
   if (s.base.contains("method") && s.base["method"].is_object() &&
-      s.base["method"].contains("threads")) {
+      s.base["method"].contains("threads") && s.base["method"]["threads"] != 0) {
     s.threads_given = true;
   }
 

@@ -63,7 +63,8 @@ struct SweepSpec {
   std::vector<SweepParameter> parameters;
   SweepCombine combine = SweepCombine::kGrid;
   SweepSave save = SweepSave::kFinal;
-  /// method.threads is set by the base problem or swept: the user chose the threads per case.
+  /// method.threads is swept, or set by the base problem to a number other than 0 (the default,
+  /// all cores): the user chose the threads per case.
   bool threads_given = false;
   std::vector<SweepCase> cases;   ///< expanded and each validated (SweepCase::invalid)
   std::uint64_t fingerprint = 0;  ///< of the base problem and every case's values
