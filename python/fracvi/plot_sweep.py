@@ -89,6 +89,18 @@ def _log_scale(values):
     return v.size > 1 and np.all(v > 0) and v.max() / v.min() >= 10
 
 
+def _edges(centres, log):
+    """Cell edges around sorted cell centres: midway between neighbours (in log on a log axis)."""
+    c = np.log(centres) if log else centres.astype(float)
+    if c.size == 1:
+        half = np.log(2.0) if log else 0.5
+        e = np.array([c[0] - half, c[0] + half])
+    else:
+        inner = (c[1:] + c[:-1]) / 2
+        e = np.concatenate([[2 * c[0] - inner[0]], inner, [2 * c[-1] - inner[-1]]])
+    return np.exp(e) if log else e
+
+
 def plot(result, quantity="energy_final", x=None, y=None, file=None):
     """A Figure of `quantity` over the sweep: a heat map over (x, y) when y is given or (y=None)
     the sweep has two parameters; otherwise (y=False, or one parameter) quantity against x, one
@@ -115,10 +127,24 @@ def plot(result, quantity="energy_final", x=None, y=None, file=None):
         ux, uy = np.unique(xs), np.unique(ys)
         grid = np.full((uy.size, ux.size), np.nan)
         grid[np.searchsorted(uy, ys), np.searchsorted(ux, xs)] = values
-        mesh = ax.pcolormesh(ux, uy, grid, shading="nearest", cmap="viridis")
+        finite = grid[np.isfinite(grid)]
+        norm = None
+        if finite.size and np.all(finite > 0) and finite.max() / finite.min() > 100:
+            from matplotlib.colors import LogNorm  # energies decaying over decades
+            norm = LogNorm(finite.min(), finite.max())
+        log_x = ux.dtype.kind == "f" and _log_scale(ux)
+        log_y = uy.dtype.kind == "f" and _log_scale(uy)
+        # Text values (method.scheme) get one cell each, labelled.
+        ex = _edges(ux, log_x) if ux.dtype.kind == "f" else np.arange(ux.size + 1) - 0.5
+        ey = _edges(uy, log_y) if uy.dtype.kind == "f" else np.arange(uy.size + 1) - 0.5
+        mesh = ax.pcolormesh(ex, ey, grid, shading="flat", cmap="viridis", norm=norm)
+        if ux.dtype.kind != "f":
+            ax.set_xticks(np.arange(ux.size), ux)
+        if uy.dtype.kind != "f":
+            ax.set_yticks(np.arange(uy.size), uy)
         fig.colorbar(mesh, ax=ax, label=quantity)
         ax.set_ylabel(y)
-        if _log_scale(uy.astype(float)):
+        if log_y:
             ax.set_yscale("log")
     else:
         groups = result[others[0]] if len(others) == 1 else np.zeros(len(xs))

@@ -346,6 +346,30 @@ time.steps = { logspace = [50, 400, 8] }
             self.assertEqual(rows[1][header.index("steps_done")], rows[1][3])
 
 
+class ExampleSweep(unittest.TestCase):
+    """examples/sweep/fractional_oscillator.toml as its comment runs it, with its heat map."""
+
+    def test_example_and_its_heat_map(self):
+        root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+        example = os.path.join(root, "examples", "sweep", "fractional_oscillator.toml")
+        with tempfile.TemporaryDirectory() as out:
+            r = sweep(example, "--out", out, "--quiet")
+            self.assertEqual(r.returncode, 0, r.stderr)
+            rows = list(csv.DictReader(io.StringIO(text_of(os.path.join(out, "results.csv")))))
+            self.assertEqual(len(rows), 30)
+            for row in rows:
+                self.assertEqual(row["status"], "success")
+                # Damping only removes energy: E(20) below E(0) = 1/2 in every case.
+                self.assertLess(float(row["energy_final"]), float(row["energy_initial"]))
+            r = subprocess.run(["/usr/bin/python3", os.path.join(root, "python", "fracvi",
+                                                                 "plot_sweep.py"),
+                                out, "energy_final"], capture_output=True, text=True,
+                               timeout=120, env=dict(os.environ, MPLBACKEND="Agg"))
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertGreater(os.path.getsize(os.path.join(out, "sweep-energy_final.png")),
+                               10000)
+
+
 if __name__ == "__main__":
     FRACVI = sys.argv[1]
     MPIRUN = sys.argv[2] if len(sys.argv) > 2 and sys.argv[2] else None
