@@ -206,7 +206,7 @@ int run_master(const SweepSpec& sweep, const std::string& file, const std::strin
       MPI_Status status;
       MPI_Iprobe(MPI_ANY_SOURCE, kTagRequest, MPI_COMM_WORLD, &flag, &status);
       if (!flag) {
-        std::this_thread::sleep_for(std::chrono::microseconds(500));
+        std::this_thread::sleep_for(std::chrono::microseconds(100));
         continue;
       }
       int length = 0;
