@@ -740,6 +740,8 @@ SweepTable::SweepTable(const std::filesystem::path& dir, const SweepSpec& sweep,
                 static_cast<unsigned long long>(sweep.fingerprint));
   const auto results = dir_ / "results.csv";
   const auto manifest = dir_ / "sweep.json";
+  prepare_output_directory(dir_);
+  lock_.emplace(dir_);  // before reading the table: nobody else appends to it meanwhile
   if (std::filesystem::exists(results)) {
     if (!resume) {
       throw SweepError(dir_.string() +
@@ -776,7 +778,6 @@ SweepTable::SweepTable(const std::filesystem::path& dir, const SweepSpec& sweep,
       rows_.emplace_back(index, line + '\n');
     }
   }
-  prepare_output_directory(dir_);
   write_file_atomically(manifest, Json{{"fingerprint", fingerprint},
                                        {"source", sweep.source},
                                        {"base", sweep.base_source},

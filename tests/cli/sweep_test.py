@@ -66,6 +66,20 @@ def table(out):
         return list(csv.reader(f))
 
 
+def start_and_wait(file, out, rows, launcher=()):
+    """Starts `fracvi sweep FILE --out OUT --jobs 1 --quiet` and returns it once results.csv has
+    more than `rows` rows."""
+    results = os.path.join(out, "results.csv")
+    p = subprocess.Popen([*launcher, FRACVI, "sweep", file, "--out", out, "--jobs", "1",
+                          "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while time.time() < deadline and p.poll() is None:
+        if os.path.exists(results) and len(text_of(results).splitlines()) > rows + 1:
+            break
+        time.sleep(0.01)
+    return p
+
+
 def without_wall_time(rows):
     """Every column but wall_seconds, as the text the file holds (bitwise numbers)."""
     column = rows[0].index("wall_seconds")
@@ -144,14 +158,7 @@ class KillAndResume(unittest.TestCase):
             self.assertEqual(r.returncode, 0, r.stderr)
 
             out = os.path.join(tmp, "killed")
-            results = os.path.join(out, "results.csv")
-            p = subprocess.Popen([FRACVI, "sweep", file, "--out", out, "--jobs", "1", "--quiet"],
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-            deadline = time.time() + 60
-            while time.time() < deadline:
-                if os.path.exists(results) and len(text_of(results).splitlines()) > 5:
-                    break
-                time.sleep(0.01)
+            p = start_and_wait(file, out, 4)
             p.send_signal(signal.SIGKILL)
             p.communicate()
             before = table(out)[1:]
@@ -182,14 +189,7 @@ class KillAndResume(unittest.TestCase):
         with tempfile.TemporaryDirectory() as tmp:
             file = write(tmp, "slow.toml", GRID.format(steps=4000))
             out = os.path.join(tmp, "out")
-            results = os.path.join(out, "results.csv")
-            p = subprocess.Popen([FRACVI, "sweep", file, "--out", out, "--jobs", "1", "--quiet"],
-                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-            deadline = time.time() + 60
-            while time.time() < deadline:
-                if os.path.exists(results) and len(text_of(results).splitlines()) > 3:
-                    break
-                time.sleep(0.01)
+            p = start_and_wait(file, out, 2)
             p.send_signal(signal.SIGINT)
             _, err = p.communicate(timeout=60)
             self.assertEqual(p.returncode, 130, err)
@@ -199,6 +199,44 @@ class KillAndResume(unittest.TestCase):
             # The running case finished and was written: rows are whole and in case order.
             self.assertEqual([int(r[0]) for r in rows], list(range(len(rows))))
             self.assertEqual({r[table(out)[0].index("status")] for r in rows}, {"success"})
+
+    def test_killed_mpi_rank_then_resume(self):
+        if not MPIRUN:
+            self.skipTest("fracvi built without MPI (install libopenmpi-dev and reconfigure)")
+        launcher = (MPIRUN, "-n", "3", "--oversubscribe", "--allow-run-as-root")
+        with tempfile.TemporaryDirectory() as tmp:
+            file = write(tmp, "slow.toml", GRID.format(steps=4000))
+            reference = os.path.join(tmp, "reference")
+            self.assertEqual(sweep(file, "--out", reference, "--jobs", "2", "--quiet").returncode,
+                             0)
+            out = os.path.join(tmp, "killed")
+            p = start_and_wait(file, out, 4, launcher)
+            # A worker rank: a child of mpirun running fracvi that is not rank 0, the one whose
+            # environment says OMPI_COMM_WORLD_RANK=1.
+            ranks = subprocess.run(["pgrep", "-P", str(p.pid)], capture_output=True,
+                                   text=True).stdout.split()
+            worker = None
+            for pid in ranks:
+                try:
+                    with open(f"/proc/{pid}/environ", "rb") as f:
+                        if b"OMPI_COMM_WORLD_RANK=1\0" in f.read():
+                            worker = int(pid)
+                except OSError:
+                    pass
+            self.assertIsNotNone(worker, f"no rank 1 among {ranks}")
+            os.kill(worker, signal.SIGKILL)
+            p.communicate(timeout=60)
+            self.assertNotEqual(p.returncode, 0)  # the MPI job ends with its rank
+            before = table(out)[1:]
+            self.assertLess(len(before), 30, "the sweep finished before the rank was killed")
+            r = sweep(file, "--out", out, "--resume", launcher=launcher)
+            self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+            self.assertIn(f"ran {30 - len(before)} on the MPI ranks", r.stdout)
+            after = table(out)
+            self.assertEqual(without_wall_time(after), without_wall_time(table(reference)))
+            kept = {row[0]: row for row in after[1:]}
+            for row in before:
+                self.assertEqual(kept[row[0]], row)
 
     def test_resume_refuses_a_different_sweep(self):
         with tempfile.TemporaryDirectory() as tmp:

@@ -19,11 +19,13 @@
 #include <functional>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "fracvi/io/output.hpp"
 #include "fracvi/io/problem_file.hpp"
 
 namespace fracvi {
@@ -120,9 +122,10 @@ std::size_t run_sweep_local(const SweepSpec& sweep, const std::vector<std::size_
 /// finish) and sweep.json (the fingerprint, the columns, the cases).
 class SweepTable {
  public:
-  /// Opens `dir` (created if needed). Without `resume`, a directory that already holds a
-  /// results.csv is refused (SweepError: nothing is overwritten); with it, the rows of the same
-  /// sweep (sweep.json's fingerprint must match) are kept, a torn last line is dropped, and
+  /// Opens `dir` (created if needed) and claims it (OutputLock: a second sweep or run into it is
+  /// refused with OutputError while this one lives). Without `resume`, a directory that already
+  /// holds a results.csv is refused (SweepError: nothing is overwritten); with it, the rows of the
+  /// same sweep (sweep.json's fingerprint must match) are kept, a torn last line is dropped, and
   /// done() lists their cases.
   SweepTable(const std::filesystem::path& dir, const SweepSpec& sweep, bool resume);
   SweepTable(const SweepTable&) = delete;
@@ -143,6 +146,7 @@ class SweepTable {
 
  private:
   std::filesystem::path dir_;
+  std::optional<OutputLock> lock_;
   std::string header_;
   std::set<std::size_t> done_;
   std::vector<std::pair<std::size_t, std::string>> rows_;
