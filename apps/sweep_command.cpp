@@ -308,6 +308,14 @@ Command add_sweep_command(CLI::App& parent) {
       }
       return run_master(sweep, opt->file, opt->out, opt->resume, opt->quiet, size);
     }
+#else
+    // Started by mpirun without MPI built in, every process would run the whole sweep into one
+    // directory (all but the first refused by its lock): say what is wrong instead.
+    if (const char* n = std::getenv("OMPI_COMM_WORLD_SIZE"); n && std::atoi(n) > 1) {
+      throw UsageError("started by mpirun with " + std::string(n) +
+                       " ranks, but this fracvi was built without MPI (install libopenmpi-dev and "
+                       "configure again); without mpirun it runs on the local cores (--jobs)");
+    }
 #endif
     return run_local(sweep, opt->file, opt->out, jobs, opt->resume, opt->quiet);
   };
