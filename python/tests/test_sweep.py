@@ -89,6 +89,8 @@ def test_failures_are_rows():
 def test_bad_sweep_raises_problem_error():
     with pytest.raises(fracvi.ProblemError, match="model.alpah"):
         fracvi.sweep(fracvi.Problem(**OSCILLATOR), {"model.alpah": [0.3]})
+    with pytest.raises(fracvi.ProblemError, match="needs one of values, linspace"):
+        fracvi.sweep(fracvi.Problem(**OSCILLATOR), {"model.alpha": {"linspase": [0.1, 0.9, 3]}})
     with pytest.raises(fracvi.ProblemError, match="one length"):
         fracvi.sweep(fracvi.Problem(**OSCILLATOR),
                      {"model.alpha": [0.3, 0.4], "model.damping": [1.0]}, combine="zip")

@@ -132,9 +132,15 @@ double number_of(const Json& v, const std::string& where) {
   return v.get<double>();
 }
 
+// The most cases a sweep may have (and so values a parameter may take): far beyond what runs in
+// a day, small enough that the case list itself is never the problem.
+constexpr std::size_t kMaxCases = 10'000'000;
+
 long long count_of(const Json& v, const std::string& where) {
-  if (!v.is_number_integer() || v.get<long long>() < 1) {
-    throw SweepError(where + " = " + v.dump() + " must be an integer count of at least 1");
+  if (!v.is_number_integer() || v.get<long long>() < 1 ||
+      v.get<long long>() > static_cast<long long>(kMaxCases)) {
+    throw SweepError(where + " = " + v.dump() + " must be an integer count from 1 to " +
+                     std::to_string(kMaxCases));
   }
   return v.get<long long>();
 }
@@ -261,7 +267,11 @@ std::vector<std::string> parameter_values(const std::string& path, const Json& s
   for (const auto& f : kForms) {
     if (spec.contains(f)) forms.push_back(f);
   }
-  if (forms.size() != 1) {
+  if (forms.empty()) {
+    throw SweepError(where + " = " + spec.dump() +
+                     ": a parameter table needs one of values, linspace, logspace, random");
+  }
+  if (forms.size() > 1) {
     throw SweepError(where + ": give one of values, linspace, logspace, random, not both " +
                      forms[0] + " and " + forms[1]);
   }
@@ -479,12 +489,14 @@ SweepSpec make_sweep(const Json& document, const std::string& source,
       }
     }
   } else {
-    for (const auto& p : s.parameters) total *= p.values.size();
+    for (const auto& p : s.parameters) {
+      // Saturated at the limit: three parameters of 10^7 values must not wrap around.
+      total = total > (kMaxCases + 1) / p.values.size() ? kMaxCases + 1 : total * p.values.size();
+    }
   }
-  constexpr std::size_t kMaxCases = 10'000'000;
   if (total > kMaxCases) {
-    throw SweepError(source + ": " + std::to_string(total) + " cases, more than the limit of " +
-                     std::to_string(kMaxCases));
+    throw SweepError(source + ": the parameters combine into more than " +
+                     std::to_string(kMaxCases) + " cases, the limit of a sweep (split it)");
   }
   s.fingerprint = fnv1a(14695981039346656037ull, s.base.dump());
   for (std::size_t i = 0; i < total; ++i) {
