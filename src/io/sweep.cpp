@@ -772,6 +772,12 @@ SweepTable::SweepTable(const std::filesystem::path& dir, const SweepSpec& sweep,
                        ": its results.csv is from a different sweep (another base problem or other "
                        "parameters); --resume continues the same sweep only");
     }
+    // Same cases but other columns (sweep.save changed): the rows there would not fit the table.
+    if (m.value("columns", Json::array()) != Json(columns)) {
+      throw SweepError(dir_.string() +
+                       ": its results.csv has other columns (was sweep.save changed?); --resume "
+                       "continues the same sweep only");
+    }
     std::ifstream rows(results);
     std::string line;
     bool first = true;

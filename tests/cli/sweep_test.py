@@ -246,6 +246,11 @@ class KillAndResume(unittest.TestCase):
             r = sweep(write(tmp, "b.toml", GRID.format(steps=201)), "--out", out, "--resume")
             self.assertEqual(r.returncode, 2)
             self.assertIn("different sweep", r.stderr)
+            r = sweep(write(tmp, "c.toml", GRID.format(steps=200).replace(
+                'combine = "grid"', 'combine = "grid"\nsave = "summary"')), "--out", out,
+                "--resume")
+            self.assertEqual(r.returncode, 2)
+            self.assertIn("other columns", r.stderr)
 
     def test_torn_last_row_is_dropped_and_rerun(self):
         with tempfile.TemporaryDirectory() as tmp:
