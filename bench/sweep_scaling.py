@@ -93,7 +93,10 @@ def main():
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--mpirun", default=shutil.which("mpirun"))
     args = parser.parse_args()
-    mpi = [args.mpirun, "--oversubscribe", "--allow-run-as-root", "-n"] if args.mpirun else None
+    # --bind-to none: OpenMPI pins each rank to one core when there are no more ranks than cores,
+    # which on a machine shared with other work pins a worker to a busy core.
+    mpi = ([args.mpirun, "--oversubscribe", "--allow-run-as-root", "--bind-to", "none", "-n"]
+           if args.mpirun else None)
 
     print(f"load average before: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
     print()
