@@ -386,7 +386,12 @@ SweepSpec make_sweep(const Json& document, const std::string& source,
     std::filesystem::path base = document["base"].get<std::string>();
     if (base.is_relative()) base = directory / base;
     s.base_source = base.string();
-    s.base = to_json_table(parse_toml_file(base, "base problem"));
+    try {
+      s.base = to_json_table(parse_toml_file(base, "base problem"));
+    } catch (const SweepError& e) {
+      throw SweepError(source + ": base = \"" + document["base"].get<std::string>() +
+                       "\": " + e.what());
+    }
   } else {
     if (!document["problem"].is_object()) throw SweepError(source + ": [problem] must be a table");
     s.base = document["problem"];
