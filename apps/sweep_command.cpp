@@ -83,11 +83,12 @@ Setup open_table(const SweepSpec& sweep, const std::string& out, const std::stri
 }
 
 // The cases refused before any run, each named with its parameters (the first few; all are rows).
-void report_invalid(const SweepSpec& sweep) {
+// A resumed sweep does not repeat those whose rows it has.
+void report_invalid(const SweepSpec& sweep, const SweepTable& table) {
   constexpr std::size_t kShown = 10;
   std::size_t n = 0;
   for (const auto& c : sweep.cases) {
-    if (c.invalid.empty()) continue;
+    if (c.invalid.empty() || table.done().contains(c.index)) continue;
     if (++n <= kShown) std::fprintf(stderr, "fracvi sweep: refused: %s\n", c.invalid.c_str());
   }
   if (n > kShown) {
@@ -125,7 +126,7 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
 int run_local(const SweepSpec& sweep, const std::string& file, const std::string& out, int jobs,
               bool resume, bool quiet) {
   Setup setup = open_table(sweep, out, file, resume);
-  report_invalid(sweep);
+  report_invalid(sweep, *setup.table);
   Tally tally{1 + sweep.parameters.size(), {}, 0};
   const int threads = std::max(1, std::min<int>(jobs, static_cast<int>(setup.pending.size())));
   if (!quiet) {
@@ -186,7 +187,7 @@ int run_master(const SweepSpec& sweep, const std::string& file, const std::strin
   } catch (const std::exception& e) {
     setup_error = e.what();  // every worker is told to stop first, then this is reported
   }
-  if (setup) report_invalid(sweep);
+  if (setup) report_invalid(sweep, *setup->table);
   Tally tally{1 + sweep.parameters.size(), {}, 0};
   if (setup && !quiet) {
     std::printf("fracvi sweep: %zu cases (%zu done before), %zu to run on %d MPI ranks\n",
