@@ -66,6 +66,11 @@ inline std::string row_text(
 std::filesystem::path prepare_output(const std::string& given,
                                      const std::filesystem::path& fallback);
 
+/// Gives up a directory of prepare_output() when the command refuses its input after all (found
+/// by the computation itself): the claim is released and the directory removed if prepare_output
+/// created it and it is still empty.
+void abandon_output(const std::filesystem::path& dir);
+
 /// The default output directory fracvi-out/<name><suffix>, with the --set overrides appended
 /// (`-model.alpha=0.6`, characters other than letters, digits and ._=+- as '_'; past 80
 /// characters a hash of them instead), so that runs of one file with different overrides, e.g. a
@@ -90,6 +95,7 @@ Command add_weights_command(CLI::App& parent);
 Command add_derivative_command(CLI::App& parent);
 Command add_run_command(CLI::App& parent);
 Command add_convergence_command(CLI::App& parent);
+Command add_compare_command(CLI::App& parent);
 Command add_plot_command(CLI::App& parent);
 Command add_residual_command(CLI::App& parent);
 Command add_bvp_command(CLI::App& parent);

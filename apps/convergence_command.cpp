@@ -69,13 +69,9 @@ Command add_convergence_command(CLI::App& parent) {
     // the study itself (--steps, a step count beyond the stability bound) leaves no directory.
     const std::filesystem::path fallback =
         default_output(spec.name, "-convergence", opt->overrides);
-    const std::filesystem::path requested =
-        opt->out.empty() ? fallback : std::filesystem::path(opt->out);
-    std::error_code ec;
-    const bool existed = std::filesystem::exists(requested, ec);
     const std::filesystem::path dir = prepare_output(opt->out, fallback);
     const auto refuse = [&](const std::string& what) {
-      if (!existed) std::filesystem::remove(dir, ec);  // only if still empty
+      abandon_output(dir);
       throw UsageError(what);
     };
     ConvergenceStudy study;

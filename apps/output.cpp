@@ -6,6 +6,7 @@
 #include <exception>
 #include <filesystem>
 #include <functional>
+#include <list>
 #include <string>
 #include <vector>
 
@@ -14,19 +15,47 @@
 
 namespace fracvi::cli {
 
+namespace {
+
+// The directories this process claimed (held until it exits: the run, then its writing), and
+// whether prepare_output created them.
+struct Claim {
+  std::filesystem::path dir;
+  bool created;
+  OutputLock lock;
+};
+std::list<Claim>& claims() {
+  static std::list<Claim> held;  // a list: OutputLock is not move-assignable
+  return held;
+}
+
+}  // namespace
+
 std::filesystem::path prepare_output(const std::string& given,
                                      const std::filesystem::path& fallback) {
-  // Claims held until the process exits (the run, then its writing).
-  static std::vector<OutputLock> claims;
   const std::filesystem::path dir = given.empty() ? fallback : std::filesystem::path(given);
   try {
+    std::error_code ec;
+    const bool existed = std::filesystem::exists(dir, ec);
     prepare_output_directory(dir);
-    claims.emplace_back(dir);
+    claims().push_back(Claim{dir, !existed, OutputLock(dir)});
   } catch (const OutputError& e) {
     throw UsageError((given.empty() ? std::string("output directory ") : std::string("--out ")) +
                      e.what());
   }
   return dir;
+}
+
+void abandon_output(const std::filesystem::path& dir) {
+  auto& held = claims();
+  for (auto it = held.begin(); it != held.end(); ++it) {
+    if (it->dir != dir) continue;
+    const bool created = it->created;
+    held.erase(it);           // releases the lock (its file is removed)
+    std::error_code ignored;  // not empty, or not removable: leave it
+    if (created) std::filesystem::remove(dir, ignored);
+    return;
+  }
 }
 
 std::filesystem::path default_output(const std::string& name, const std::string& suffix,

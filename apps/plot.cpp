@@ -61,4 +61,8 @@ std::string draw_convergence_plot(const std::filesystem::path& dir) {
   return run_plot_script("plot_convergence.py", dir);
 }
 
+std::string draw_compare_plots(const std::filesystem::path& dir) {
+  return run_plot_script("plot_compare.py", dir);
+}
+
 }  // namespace fracvi::cli

@@ -16,5 +16,8 @@ std::string draw_plots(const std::filesystem::path& dir, bool quiet);
 void remove_plots(const std::filesystem::path& dir);
 /// Draws convergence.png (log-log error against h) from convergence.csv in `dir`; "" or a note.
 std::string draw_convergence_plot(const std::filesystem::path& dir);
+/// Draws work_precision.png, error_vs_steps.png and energy_tracking.png from compare.csv,
+/// energy.csv and compare.json in `dir` (python/fracvi/plot_compare.py); "" or a note.
+std::string draw_compare_plots(const std::filesystem::path& dir);
 
 }  // namespace fracvi::cli

@@ -43,6 +43,11 @@ test -f fracvi-out/bagley-torvik-root-lobatto-convergence/convergence.csv
 fracvi convergence examples/damped_pendulum.toml --steps 500,1000,2000,4000 --reference-steps 64000
 # [/snippet]
 
+# [snippet: compare]
+fracvi compare examples/two_dof_coupled.toml --steps 100,200,400,800 --reference-steps 6400
+# [/snippet]
+test -f fracvi-out/two-dof-coupled-compare/work_precision.png
+
 # [snippet: plot]
 fracvi plot fracvi-out/damped-pendulum
 # [/snippet]

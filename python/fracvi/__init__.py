@@ -42,6 +42,7 @@ import numpy as np
 
 from . import _fracvi
 from . import plot as _plotting  # before `def plot` below, which rebinds the name
+from . import plot_compare as _compare_figures  # idem for `def plot_compare`
 from . import plot_sweep as _sweep_plotting
 from .plot_sweep import SweepResult
 from ._fracvi import ProblemError
@@ -51,8 +52,8 @@ __all__ = [
     "BvpSolution", "solve_bvp", "methods", "problem_schema",
     "gl_weights", "cq_weights", "midpoint", "delta_minus", "delta_plus", "frac_delta_minus",
     "frac_delta_plus", "convolve_past", "convolve_future", "rl_derivative",
-    "rl_derivative_power", "fracel_residual", "action", "sweep", "load_sweep", "plot_sweep",
-    "SweepResult",
+    "rl_derivative_power", "fracel_residual", "action", "compare", "plot_compare", "sweep",
+    "load_sweep", "plot_sweep", "SweepResult",
 ]
 
 ProblemError.__module__ = __name__
@@ -388,6 +389,77 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostic
     if raise_on_failure and not solution.ok:
         raise IntegrationError(solution)
     return solution
+
+
+def compare(problem, *, steps, schemes=None, reference=None, reference_steps=0,
+            reference_scheme=None, energy_steps=None, repeat=1):
+    """Runs every scheme at every step count on `problem` and measures each run against one
+    reference (the library behind `fracvi compare`; docs/comparison.md).
+
+    steps: increasing step counts. schemes: registry names (default: every scheme in methods();
+    one that does not apply, or a step beyond its stability bound, is a row with status
+    "not applicable" and the reason in "message"). reference: the exact x(t) as d formulas in t
+    (default: the problem's [reference] position); or reference_steps: a fine run with that many
+    steps (a larger multiple of every step count) by reference_scheme (default: dopri5 at
+    tolerances 1e-13 where it applies, else fvi-lobatto4, fvi-lobatto3, fvi-midpoint).
+    energy_steps: the N of the energy track (one of steps; default the middle one). repeat: runs
+    per scheme and N, the best wall time kept. Each run stores every step and runs without the
+    mirror run and error estimate, so wall_seconds is the integration alone.
+
+    Returns a dict: "table" (columns as NumPy arrays or lists: scheme, steps, declared_order,
+    status, h, final_error, max_error, energy_error, dissipated_error, balance_error,
+    wall_seconds, newton_iterations, message), "reference", "energy_reference" (how E_ref was
+    obtained) and "energy" (t, reference_energy, reference_dissipated, and dicts "energy",
+    "dissipated" of the per-scheme E_k and W_k at energy_steps). Errors are NaN for runs that did
+    not succeed. Bad arguments raise ValueError; a failing reference run RuntimeError.
+    """
+    problem = _as_problem(problem)
+    steps = [int(n) for n in steps]
+    if not steps:
+        raise ValueError("steps: give at least one step count")
+    if any(n < 1 for n in steps):
+        raise ValueError(f"steps = {steps}: step counts must be positive")
+    if schemes is None:
+        schemes = [m["name"] for m in methods()]
+    elif isinstance(schemes, str):
+        schemes = [schemes]
+    if isinstance(reference, str):
+        reference = [reference]
+    if int(repeat) < 1:
+        raise ValueError(f"repeat = {repeat}: must be at least 1")
+    if energy_steps is None:
+        energy_steps = steps[len(steps) // 2]
+    result = _fracvi.compare(problem._spec, list(schemes), steps, list(reference or []),
+                             int(reference_steps), reference_scheme or "", int(energy_steps),
+                             int(repeat))
+    table = result["table"]
+    for key in ("scheme", "status", "message"):
+        table[key] = np.array(table[key], dtype=object)
+    result["problem"] = problem.to_dict()
+    return result
+
+
+def plot_compare(result, directory):
+    """Draws work_precision.png, error_vs_steps.png and energy_tracking.png of a compare() result
+    into `directory` (created if needed); returns the paths."""
+    _figures = _compare_figures
+    os.makedirs(directory, exist_ok=True)
+    meta = {"problem": result.get("problem", {}), "reference": result["reference"],
+            "energy_reference": result["energy_reference"],
+            "energy_steps": result["energy"]["steps"],
+            "adaptive": [m["name"] for m in methods() if m["adaptive"]]}
+    paths = []
+    for name, draw in (("work_precision.png", _figures.plot_work_precision),
+                       ("error_vs_steps.png", _figures.plot_error_vs_steps)):
+        paths.append(os.path.join(directory, name))
+        draw(result["table"], meta, paths[-1])
+    e = result["energy"]
+    if e["steps"]:
+        curves = {s: (e["energy"][s], e["dissipated"][s]) for s in e["energy"]}
+        paths.append(os.path.join(directory, "energy_tracking.png"))
+        _figures.plot_energy_tracking(
+            (e["t"], e["reference_energy"], e["reference_dissipated"], curves), meta, paths[-1])
+    return paths
 
 
 def _with_fields(problem, fields, function, valid_fields, run_options):

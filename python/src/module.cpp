@@ -34,6 +34,7 @@
 #include <utility>
 #include <vector>
 
+#include "fracvi/analysis/comparison.hpp"
 #include "fracvi/analysis/error_estimate.hpp"
 #include "fracvi/discrete/operators.hpp"
 #include "fracvi/expression/expression.hpp"
@@ -774,6 +775,88 @@ void bind(py::module_& m) {
             write_bvp_output(directory, r.spec, r.solution);
           },
           py::arg("directory"));
+
+  // --- the comparison of schemes (fracvi/analysis/comparison.hpp, `fracvi compare`) -----------
+  m.def(
+      "compare",
+      [](const ProblemSpec& spec, const std::vector<std::string>& schemes,
+         const std::vector<std::size_t>& steps, const std::vector<std::string>& exact,
+         std::size_t reference_steps, const std::string& reference_scheme, std::size_t energy_steps,
+         int repeat) {
+        ComparisonSetup setup;
+        setup.schemes = schemes;
+        setup.steps = steps;
+        setup.exact = exact;
+        setup.reference_steps = reference_steps;
+        setup.reference_scheme = reference_scheme;
+        setup.options.energy_steps = energy_steps;
+        setup.options.repeat = repeat;
+        Comparison c;
+        {
+          py::gil_scoped_release release;
+          c = compare_schemes(spec, setup);
+        }
+        const std::size_t n = c.rows.size();
+        py::dict table;
+        py::list scheme, status, message;
+        py::array_t<std::int64_t> nsteps(static_cast<py::ssize_t>(n)), order(nsteps.size()),
+            newton(nsteps.size());
+        std::vector<py::array_t<double>> reals;
+        const char* real_names[] = {"h",
+                                    "final_error",
+                                    "max_error",
+                                    "energy_error",
+                                    "dissipated_error",
+                                    "balance_error",
+                                    "wall_seconds"};
+        for (std::size_t j = 0; j < std::size(real_names); ++j) reals.emplace_back(nsteps.size());
+        for (std::size_t i = 0; i < n; ++i) {
+          const ComparisonRow& r = c.rows[i];
+          scheme.append(r.scheme);
+          status.append(r.status);
+          message.append(r.message);
+          nsteps.mutable_at(i) = static_cast<std::int64_t>(r.steps);
+          order.mutable_at(i) = r.declared_order;
+          newton.mutable_at(i) = static_cast<std::int64_t>(r.newton_iterations);
+          const double values[] = {r.h,
+                                   r.final_error,
+                                   r.max_error,
+                                   r.energy_error,
+                                   r.dissipated_error,
+                                   r.balance_error,
+                                   r.wall_seconds};
+          for (std::size_t j = 0; j < std::size(values); ++j) reals[j].mutable_at(i) = values[j];
+        }
+        table["scheme"] = scheme;
+        table["steps"] = nsteps;
+        table["declared_order"] = order;
+        table["status"] = status;
+        for (std::size_t j = 0; j < std::size(real_names); ++j) table[real_names[j]] = reals[j];
+        table["newton_iterations"] = newton;
+        table["message"] = message;
+        py::dict energy;
+        const EnergyTrack& e = c.energy;
+        energy["steps"] = e.steps;
+        energy["t"] = e.t;
+        energy["reference_energy"] = e.reference_energy;
+        energy["reference_dissipated"] = e.reference_dissipated;
+        py::dict energies, dissipated;
+        for (std::size_t j = 0; j < e.schemes.size(); ++j) {
+          energies[py::str(e.schemes[j])] = e.energy[j];
+          dissipated[py::str(e.schemes[j])] = e.dissipated[j];
+        }
+        energy["energy"] = energies;
+        energy["dissipated"] = dissipated;
+        py::dict out;
+        out["table"] = table;
+        out["reference"] = c.reference;
+        out["energy_reference"] = c.energy_reference;
+        out["energy"] = energy;
+        return out;
+      },
+      py::arg("spec"), py::arg("schemes"), py::arg("steps"), py::arg("exact"),
+      py::arg("reference_steps"), py::arg("reference_scheme"), py::arg("energy_steps"),
+      py::arg("repeat"));
 
   m.def("solve_bvp", &run_bvp, py::arg("spec"), py::arg("sum"), py::arg("solver"),
         py::arg("tolerance"));

@@ -508,6 +508,70 @@ class Run(unittest.TestCase):
             self.assertFalse(os.path.exists(out), "output directory created on bad input")
 
 
+class Compare(unittest.TestCase):
+    """fracvi compare: the table, the energy track and the plots; bad input exit 2."""
+    OSCILLATOR = ('name = "osc"\n[model]\ndim = 1\nmass = 1.0\ndamping = 0.25\nalpha = 0.5\n'
+                  'potential = "x1^2/2"\n[initial]\nposition = [1.0]\nvelocity = [0.5]\n'
+                  '[time]\nend = 16.0\nsteps = 100\n[reference]\nposition = '
+                  '["exp(-t/8)*(cos(w*t) + 0.625/w*sin(w*t))"]\n').replace("w", "sqrt(1 - 1/64)")
+
+    def setUp(self):
+        self._tmp = tempfile.TemporaryDirectory()
+        self.dir = self._tmp.name
+        self.addCleanup(self._tmp.cleanup)
+        self.path = os.path.join(self.dir, "osc.toml")
+        with open(self.path, "w", encoding="utf-8") as f:
+            f.write(self.OSCILLATOR)
+
+    def test_table_energy_track_and_plots(self):
+        out = os.path.join(self.dir, "cmp")
+        r = run("compare", self.path, "--schemes", "fvi-midpoint,euler-explicit,fvi-lobatto3",
+                "--steps", "50,100,200", "--out", out)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("reference: exact solution", r.stdout)
+        self.assertIn("9 runs: 7 succeeded, 1 failed, 1 not applicable", r.stdout)
+        with open(os.path.join(out, "compare.csv"), newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual([(x["scheme"], int(x["steps"])) for x in rows],
+                         [(s, n) for s in ("fvi-midpoint", "euler-explicit", "fvi-lobatto3")
+                          for n in (50, 100, 200)])
+        refused = rows[3]
+        self.assertEqual(refused["status"], "not applicable")
+        self.assertIn("stability bound of euler-explicit", refused["message"])
+        self.assertTrue(math.isnan(float(refused["max_error"])))
+        self.assertEqual(rows[4]["status"], "inaccurate")  # h = 0.16: forward Euler's balance
+        midpoint = [float(x["max_error"]) for x in rows[:3]]
+        for coarse, fine in zip(midpoint, midpoint[1:]):  # second order: 4x per halving
+            self.assertAlmostEqual(coarse / fine, 4.0, delta=0.3)
+        self.assertEqual(rows[0]["declared_order"], "2")
+        with open(os.path.join(out, "energy.csv"), newline="", encoding="utf-8") as f:
+            energy = list(csv.DictReader(f))
+        self.assertEqual(len(energy), 101)  # the middle N, 100 steps
+        self.assertIn("energy:fvi-midpoint", energy[0])
+        self.assertAlmostEqual(float(energy[0]["reference_energy"]), 0.5 + 0.125, delta=1e-15)
+        with open(os.path.join(out, "compare.json"), encoding="utf-8") as f:
+            meta = json.load(f)
+        self.assertEqual(meta["energy_steps"], 100)
+        self.assertEqual(meta["schemes"], ["fvi-midpoint", "euler-explicit", "fvi-lobatto3"])
+        for png in ("work_precision.png", "error_vs_steps.png", "energy_tracking.png"):
+            self.assertGreater(os.path.getsize(os.path.join(out, png)), 10000, png)
+
+    def test_bad_input(self):
+        cases = [
+            (("--steps", "100,50"), "step counts must increase"),
+            (("--steps", "100", "--schemes", "fvi-gll"), '"fvi-gll" is not a known scheme'),
+            (("--steps", "100,300", "--reference-steps", "1000"), "(300 is not a divisor)"),
+            (("--steps", "100,200", "--energy-steps", "150"), "must be one of the --steps"),
+        ]
+        for args, says in cases:
+            out = os.path.join(self.dir, "bad")
+            r = run("compare", self.path, "--out", out, "--no-plot", *args)
+            self.assertEqual(r.returncode, 2, (args, r.stdout, r.stderr))
+            self.assertIn(says, r.stderr)
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            self.assertFalse(os.path.exists(out), "the refused comparison left a directory")
+
+
 class Methods(unittest.TestCase):
     """The method registry reaches the CLI, and docs/schemes.md is its table."""
 

@@ -8,6 +8,7 @@
 #include <span>
 #include <string>
 
+#include "fracvi/analysis/comparison.hpp"
 #include "fracvi/analysis/convergence.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/io/problem_file.hpp"
@@ -61,5 +62,26 @@ PreparedBvp prepare_bvp(ProblemSpec spec);
 ConvergenceStudy convergence_study(const ProblemSpec& spec, std::span<const std::size_t> steps,
                                    std::span<const std::string> exact,
                                    std::size_t reference_steps = 0);
+
+/// How `fracvi compare` / fracvi.compare find their reference (comparison.hpp).
+struct ComparisonSetup {
+  std::vector<std::string> schemes;  ///< registry names
+  std::vector<std::size_t> steps;    ///< ascending
+  /// Exact x(t), d formulas in t; empty: spec.reference, and without that a fine run.
+  std::vector<std::string> exact;
+  std::size_t reference_steps = 0;  ///< the fine run's N (a multiple of every step count)
+  /// The fine run's scheme; empty: dopri5 with tolerances 1e-13 where it applies (2α = 1 or
+  /// R = 0: an independent adaptive Runge–Kutta code), otherwise the first of fvi-lobatto4,
+  /// fvi-lobatto3, fvi-midpoint, the problem's scheme that applies.
+  std::string reference_scheme;
+  ComparisonOptions options;
+};
+
+/// The comparison of `setup.schemes` on `spec` (prepare_run for each scheme and N; a refusal is
+/// a "not applicable" row). With an exact solution the energy reference is
+/// E(t) = ½ ẋᵀMẋ + U(x, t) from the formulas and their exact t-derivatives; with a fine run, that
+/// run's E_k. Throws std::invalid_argument for bad arguments (malformed formulas, reference_steps
+/// not a multiple, no reference) and std::runtime_error if the reference run fails.
+Comparison compare_schemes(const ProblemSpec& spec, const ComparisonSetup& setup);
 
 }  // namespace fracvi
