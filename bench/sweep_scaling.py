@@ -22,25 +22,17 @@ import subprocess
 import tempfile
 import time
 
-SWEEP = """\
-[problem]
-name = "oscillator"
-[problem.model]
-dim = 1
-mass = 1.0
-damping = 0.5
-damping_order = 1.0
-convention = "caputo"
-potential = "x1^2/2"
-[problem.initial]
-position = [1.0]
-[problem.time]
-end = 20.0
-steps = {steps}
-[sweep.parameters]
-model.damping_order = {{ linspace = [0.2, 1.8, {n_order}] }}
-model.damping = {{ logspace = [0.1, 2.0, {n_damping}] }}
-"""
+EXAMPLE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "examples", "sweep",
+                       "fractional_oscillator.toml")
+
+
+def sweep_text(steps, n_order, n_damping):
+    """examples/sweep/fractional_oscillator.toml with `steps` steps and an n_order x n_damping
+    grid (0 x 0: the base problem and its [sweep] header only)."""
+    with open(EXAMPLE, encoding="utf-8") as f:
+        text = f.read().replace("steps = 400\n", f"steps = {steps}\n")
+    text = text.replace("linspace = [0.2, 1.8, 6]", f"linspace = [0.2, 1.8, {n_order}]")
+    return text.replace("logspace = [0.1, 2.0, 5]", f"logspace = [0.1, 2.0, {n_damping}]")
 
 
 def cpu_seconds():
@@ -107,7 +99,7 @@ def main():
         for steps, n_order, n_damping in ((400, 20, 10), (4000, 6, 5)):
             file = os.path.join(tmp, f"sweep{steps}.toml")
             with open(file, "w", encoding="utf-8") as f:
-                f.write(SWEEP.format(steps=steps, n_order=n_order, n_damping=n_damping))
+                f.write(sweep_text(steps, n_order, n_damping))
             out = os.path.join(tmp, "out")
             launchers = [("--jobs 1", [args.fracvi, "sweep", file, "--out", out, "--quiet",
                                        "--jobs", "1"]),
@@ -130,7 +122,7 @@ def main():
         for steps in (400, 4000):
             # Identical cases: the base problem swept over its name only.
             file = os.path.join(tmp, f"same{steps}.toml")
-            problem_text = SWEEP.format(steps=steps, n_order=1, n_damping=1).split("[sweep")[0]
+            problem_text = sweep_text(steps, 1, 1).split("[sweep]")[0]
             problem_text = problem_text.replace("damping_order = 1.0", "damping_order = 1.5")
             cases = 100 if steps == 400 else 20
             with open(file, "w", encoding="utf-8") as f:

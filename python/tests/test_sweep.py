@@ -7,30 +7,13 @@ import pytest
 
 import fracvi
 
-OSCILLATOR = dict(name="oscillator", dim=1, mass=1.0, damping=0.5, alpha=0.5, convention="caputo",
-                  potential="0.5*x1^2", position=[1.0], end=10.0, steps=200)
+# The base problem of examples/sweep/fractional_oscillator.toml and its grid.
+OSCILLATOR = dict(name="fractional-oscillator", dim=1, mass=1.0, damping=0.5, alpha=0.5,
+                  convention="caputo", potential="x1^2/2", position=[1.0], end=20.0, steps=400)
 GRID = {"model.damping_order": {"linspace": [0.2, 1.8, 6]},
         "model.damping": {"logspace": [0.1, 2.0, 5]}}
-
-SWEEP_FILE = """\
-[problem]
-name = "oscillator"
-[problem.model]
-dim = 1
-mass = 1.0
-damping = 0.5
-alpha = 0.5
-convention = "caputo"
-potential = "0.5*x1^2"
-[problem.initial]
-position = [1.0]
-[problem.time]
-end = 10.0
-steps = 200
-[sweep.parameters]
-model.damping_order = { linspace = [0.2, 1.8, 6] }
-model.damping = { logspace = [0.1, 2.0, 5] }
-"""
+EXAMPLE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "examples",
+                       "sweep", "fractional_oscillator.toml")
 
 
 def same_table(a, b):
@@ -65,9 +48,9 @@ def test_jobs_do_not_change_the_numbers(grid):
     same_table(fracvi.sweep(fracvi.Problem(**OSCILLATOR), GRID, jobs=2), grid)
 
 
-def test_same_table_as_the_command_line(grid, cli, write_file, tmp_path):
+def test_same_table_as_the_command_line(grid, cli, tmp_path):
     out = tmp_path / "cli"
-    r = cli("sweep", write_file(SWEEP_FILE), "--out", out, "--quiet")
+    r = cli("sweep", EXAMPLE, "--out", out, "--quiet")
     assert r.returncode == 0, r.stderr
     same_table(fracvi.load_sweep(out), grid)
 

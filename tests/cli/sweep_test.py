@@ -18,30 +18,17 @@ import unittest
 FRACVI = None
 MPIRUN = None
 
-# The fractional oscillator x'' + R D^(2 alpha) x + x = 0 over a 6 x 5 grid of (2 alpha, R).
-GRID = """
-[problem]
-name = "oscillator"
-[problem.model]
-dim = 1
-mass = 1.0
-damping = 0.5
-alpha = 0.5
-convention = "caputo"
-potential = "0.5*x1^2"
-[problem.initial]
-position = [1.0]
-velocity = [0.0]
-[problem.time]
-end = 10.0
-steps = {steps}
+EXAMPLE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "examples",
+                       "sweep", "fractional_oscillator.toml")
 
-[sweep]
-combine = "grid"
-[sweep.parameters]
-model.damping_order = {{ linspace = [0.2, 1.8, 6] }}
-model.damping = {{ logspace = [0.1, 2.0, 5] }}
-"""
+
+def grid(steps):
+    """The example sweep (the fractional oscillator x'' + R D^(2 alpha) x + x = 0 on [0, 20] over a
+    6 x 5 grid of (2 alpha, R)) with `steps` steps."""
+    with open(EXAMPLE, encoding="utf-8") as f:
+        text = f.read()
+    assert "steps = 400\n" in text
+    return text.replace("steps = 400\n", f"steps = {steps}\n")
 
 
 def write(directory, name, text):
@@ -92,7 +79,7 @@ class SameTable(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.tmp = tempfile.TemporaryDirectory()
-        cls.file = write(cls.tmp.name, "grid.toml", GRID.format(steps=200))
+        cls.file = write(cls.tmp.name, "grid.toml", grid(400))
         cls.reference = os.path.join(cls.tmp.name, "jobs1")
         r = sweep(cls.file, "--out", cls.reference, "--jobs", "1", "--quiet")
         assert r.returncode == 0, r.stderr
@@ -117,11 +104,11 @@ class SameTable(unittest.TestCase):
     def test_case_equals_fracvi_run_of_the_same_problem(self):
         # Case 7 is (2 alpha, R) = (0.52, 0.44721359549995798): a plain run with --set.
         with tempfile.TemporaryDirectory() as out:
-            problem = write(out, "p.toml", GRID.format(steps=200).split("[sweep]")[0]
+            problem = write(out, "p.toml", grid(400).split("[sweep]")[0]
                             .replace("[problem.", "[").replace("[problem]\n", ""))
             case = self.rows[8]
             r = subprocess.run([FRACVI, "run", problem, "--out", os.path.join(out, "run"),
-                                "--no-plot", "--quiet", "--set", "model.alpha=0.26",
+                                "--no-plot", "--quiet", "--set", "model.damping_order=0.52",
                                 "--set", "model.damping=" + case[2]],
                                capture_output=True, text=True, timeout=60)
             self.assertEqual(r.returncode, 0, r.stderr)
@@ -152,7 +139,7 @@ class KillAndResume(unittest.TestCase):
     def test_resume_after_kill_runs_each_case_once(self):
         with tempfile.TemporaryDirectory() as tmp:
             # About 0.1 s a case: slow enough to be killed in the middle.
-            file = write(tmp, "slow.toml", GRID.format(steps=4000))
+            file = write(tmp, "slow.toml", grid(4000))
             reference = os.path.join(tmp, "reference")
             r = sweep(file, "--out", reference, "--jobs", "2", "--quiet")
             self.assertEqual(r.returncode, 0, r.stderr)
@@ -187,7 +174,7 @@ class KillAndResume(unittest.TestCase):
 
     def test_ctrl_c_stops_handing_out_cases_and_keeps_the_rows(self):
         with tempfile.TemporaryDirectory() as tmp:
-            file = write(tmp, "slow.toml", GRID.format(steps=4000))
+            file = write(tmp, "slow.toml", grid(4000))
             out = os.path.join(tmp, "out")
             p = start_and_wait(file, out, 2)
             p.send_signal(signal.SIGINT)
@@ -205,7 +192,7 @@ class KillAndResume(unittest.TestCase):
             self.skipTest("fracvi built without MPI (install libopenmpi-dev and reconfigure)")
         launcher = (MPIRUN, "-n", "3", "--oversubscribe", "--allow-run-as-root")
         with tempfile.TemporaryDirectory() as tmp:
-            file = write(tmp, "slow.toml", GRID.format(steps=4000))
+            file = write(tmp, "slow.toml", grid(4000))
             reference = os.path.join(tmp, "reference")
             self.assertEqual(sweep(file, "--out", reference, "--jobs", "2", "--quiet").returncode,
                              0)
@@ -241,20 +228,20 @@ class KillAndResume(unittest.TestCase):
     def test_resume_refuses_a_different_sweep(self):
         with tempfile.TemporaryDirectory() as tmp:
             out = os.path.join(tmp, "out")
-            r = sweep(write(tmp, "a.toml", GRID.format(steps=200)), "--out", out, "--quiet")
+            r = sweep(write(tmp, "a.toml", grid(400)), "--out", out, "--quiet")
             self.assertEqual(r.returncode, 0, r.stderr)
-            r = sweep(write(tmp, "b.toml", GRID.format(steps=201)), "--out", out, "--resume")
+            r = sweep(write(tmp, "b.toml", grid(401)), "--out", out, "--resume")
             self.assertEqual(r.returncode, 2)
             self.assertIn("different sweep", r.stderr)
-            r = sweep(write(tmp, "c.toml", GRID.format(steps=200).replace(
-                'combine = "grid"', 'combine = "grid"\nsave = "summary"')), "--out", out,
+            r = sweep(write(tmp, "c.toml", grid(400).replace(
+                'save = "final"', 'save = "summary"')), "--out", out,
                 "--resume")
             self.assertEqual(r.returncode, 2)
             self.assertIn("other columns", r.stderr)
 
     def test_torn_last_row_is_dropped_and_rerun(self):
         with tempfile.TemporaryDirectory() as tmp:
-            file = write(tmp, "grid.toml", GRID.format(steps=200))
+            file = write(tmp, "grid.toml", grid(400))
             out = os.path.join(tmp, "out")
             self.assertEqual(sweep(file, "--out", out, "--quiet").returncode, 0)
             full = text_of(os.path.join(out, "results.csv"))
@@ -332,7 +319,7 @@ class SweepFileErrors(unittest.TestCase):
             self.assertFalse(os.path.exists(os.path.join(tmp, "out", "results.csv")))
 
     def base(self, parameters, sweep_keys=""):
-        return GRID.format(steps=100).split("[sweep]")[0] + "[sweep]\n" + sweep_keys + \
+        return grid(100).split("[sweep]")[0] + "[sweep]\n" + sweep_keys + \
             "[sweep.parameters]\n" + parameters
 
     def test_unknown_field(self):
@@ -362,13 +349,13 @@ class SweepFileErrors(unittest.TestCase):
 
 class RandomDraws(unittest.TestCase):
     def test_seeded_draws_repeat_and_integer_fields_round(self):
-        text = GRID.format(steps=100).split("[sweep]")[0] + """[sweep]
+        text = grid(100).split("[sweep]")[0] + """[sweep]
 combine = "zip"
 save = "summary"
 [sweep.parameters]
-model.damping = { random = "loguniform", low = 0.1, high = 10.0, count = 8, seed = 7 }
-model.alpha = { random = "uniform", low = 0.2, high = 0.8, count = 8, seed = 8 }
-time.steps = { logspace = [50, 400, 8] }
+model.damping = { random = "loguniform", low = 0.1, high = 2.0, count = 8, seed = 7 }
+model.alpha = { random = "uniform", low = 0.2, high = 0.6, count = 8, seed = 8 }
+time.steps = { logspace = [200, 1600, 8] }
 """
         with tempfile.TemporaryDirectory() as tmp:
             file = write(tmp, "mc.toml", text)
@@ -382,10 +369,12 @@ time.steps = { logspace = [50, 400, 8] }
             self.assertNotIn("x1", header)  # save = "summary": no final state columns
             damping = [float(r[1]) for r in rows]
             alpha = [float(r[2]) for r in rows]
-            self.assertTrue(all(0.1 <= d <= 10.0 for d in damping))
-            self.assertTrue(all(0.2 <= a <= 0.8 for a in alpha))
+            self.assertTrue(all(0.1 <= d <= 2.0 for d in damping))
+            self.assertTrue(all(0.2 <= a <= 0.6 for a in alpha))
             self.assertEqual(len(set(damping)), 8)
-            self.assertEqual([r[3] for r in rows][0::7], ["50", "400"])
+            # NumPy's geomspace(200, 1600, 8) rounded: an integer field takes rounded values.
+            self.assertEqual([r[3] for r in rows], ["200", "269", "362", "488", "656", "883", "1189",
+                                                    "1600"])
             self.assertEqual(rows[1][header.index("steps_done")], rows[1][3])
 
 
