@@ -128,6 +128,19 @@ TEST(Sweep, RefusedDocumentsNameTheKey) {
             std::string::npos);
 }
 
+TEST(Sweep, TooManyCasesAreRefusedBeforeValuesAreMade) {
+  // 10^21 cases: refused from the declared counts (making 10^7 values first took seconds and GB).
+  const Json range = Json::parse(R"({"linspace": [0.1, 0.9, 10000000]})");
+  try {
+    sweep_of(
+        Json::array({Json::array({"model.alpha", range}), Json::array({"model.damping", range}),
+                     Json::array({"model.mass", range})}));
+    FAIL() << "accepted";
+  } catch (const SweepError& e) {
+    EXPECT_NE(std::string(e.what()).find("more than 10000000 cases"), std::string::npos);
+  }
+}
+
 TEST(Sweep, CsvLinesSplitWithQuotes) {
   EXPECT_EQ(split_csv_line(R"(1,"a, ""b""",,x)"),
             (std::vector<std::string>{"1", "a, \"b\"", "", "x"}));
