@@ -1,12 +1,13 @@
 // `fracvi sweep`: the cases of a sweep file (fracvi/io/sweep.hpp) on local threads, or over MPI
-// ranks when started by mpirun (built with MPI; rank 0 hands out cases one at a time and writes
-// the table, the other ranks run them).
+// ranks when started by mpirun (built with MPI; every rank runs cases, rank 0 also hands them out
+// one at a time and writes the table).
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -166,7 +167,11 @@ bool launched_by_mpirun() {
 }
 
 struct MpiSession {
-  MpiSession() { MPI_Init(nullptr, nullptr); }
+  // FUNNELED: rank 0 runs cases on a second thread, which never calls MPI.
+  MpiSession() {
+    int provided = 0;
+    MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
+  }
   ~MpiSession() { MPI_Finalize(); }
   MpiSession(const MpiSession&) = delete;
   MpiSession& operator=(const MpiSession&) = delete;
@@ -176,8 +181,9 @@ constexpr int kTagRequest = 1;  // worker → rank 0: the row of the case it fin
 constexpr int kTagAssign = 2;   // rank 0 → worker: the next case, or −1 to stop
 
 // Rank 0: hands out one case at a time to whichever rank asks (dynamic balancing: cases differ in
-// cost by orders of magnitude) and appends each row as it arrives. It polls with a short sleep
-// instead of blocking in MPI_Recv, which spins a core in OpenMPI (the workers need the cores).
+// cost by orders of magnitude), runs cases itself on a second thread taking them from the same
+// list, and appends each row as it arrives. It polls with a short sleep instead of blocking in
+// MPI_Recv, which spins a core in OpenMPI (the cases need the cores).
 int run_master(const SweepSpec& sweep, const std::string& file, const std::string& out, bool resume,
                bool quiet, int size) {
   std::unique_ptr<Setup> setup;
@@ -191,21 +197,67 @@ int run_master(const SweepSpec& sweep, const std::string& file, const std::strin
   Tally tally{1 + sweep.parameters.size(), {}, 0};
   if (setup && !quiet) {
     std::printf("fracvi sweep: %zu cases (%zu done before), %zu to run on %d MPI ranks\n",
-                sweep.cases.size(), setup->table->done().size(), setup->pending.size(), size - 1);
+                sweep.cases.size(), setup->table->done().size(), setup->pending.size(), size);
     std::fflush(stdout);
   }
   const auto start = std::chrono::steady_clock::now();
-  std::size_t next = 0, ran = 0;
+  std::size_t ran = 0;
   int active = size - 1;
   g_stop = false;
   std::signal(SIGINT, on_interrupt);
+
+  // The list of cases, shared by the other ranks' requests and rank 0's own thread.
+  std::mutex mutex;
+  std::size_t next = 0;
+  std::vector<std::string> finished;  // rows of rank 0's thread not yet appended
+  bool local_running = setup != nullptr;
+  const auto take = [&]() -> long long {
+    const std::lock_guard<std::mutex> lock(mutex);
+    if (!setup || g_stop || next >= setup->pending.size()) return -1;
+    return static_cast<long long>(setup->pending[next++]);
+  };
+  std::thread local;
+  if (setup) {
+    local = std::thread([&] {
+      SweepCaseOptions options;
+      options.single_thread = true;
+      options.out = setup->dir;
+      for (long long index = take(); index >= 0; index = take()) {
+        std::string row;
+        try {
+          row = run_sweep_case(sweep, sweep.cases[static_cast<std::size_t>(index)], options);
+        } catch (...) {  // out of memory or the like, not a failing case: stop this thread
+          break;
+        }
+        const std::lock_guard<std::mutex> lock(mutex);
+        finished.push_back(std::move(row));
+      }
+      const std::lock_guard<std::mutex> lock(mutex);
+      local_running = false;
+    });
+  }
   {
     CaseProgress progress(setup ? setup->pending.size() : 0, !quiet && setup);
+    const auto record = [&](const std::string& row) {
+      setup->table->append(std::stoull(row), row);
+      tally.add(row);
+      ++ran;
+      progress.add(tally.failures);
+    };
     std::string row;
-    while (active > 0) {
+    for (;;) {
+      std::vector<std::string> rows;
+      bool local_left = false;
+      {
+        const std::lock_guard<std::mutex> lock(mutex);
+        rows.swap(finished);
+        local_left = local_running;
+      }
+      for (const auto& r : rows) record(r);
+      if (active == 0 && !local_left) break;
       int flag = 0;
       MPI_Status status;
-      MPI_Iprobe(MPI_ANY_SOURCE, kTagRequest, MPI_COMM_WORLD, &flag, &status);
+      if (active > 0) MPI_Iprobe(MPI_ANY_SOURCE, kTagRequest, MPI_COMM_WORLD, &flag, &status);
       if (!flag) {
         std::this_thread::sleep_for(std::chrono::microseconds(100));
         continue;
@@ -215,21 +267,13 @@ int run_master(const SweepSpec& sweep, const std::string& file, const std::strin
       row.resize(static_cast<std::size_t>(length));
       MPI_Recv(row.data(), length, MPI_CHAR, status.MPI_SOURCE, kTagRequest, MPI_COMM_WORLD,
                MPI_STATUS_IGNORE);
-      if (!row.empty()) {
-        setup->table->append(std::stoull(row), row);
-        tally.add(row);
-        ++ran;
-        progress.add(tally.failures);
-      }
-      long long assign = -1;
-      if (setup && !g_stop && next < setup->pending.size()) {
-        assign = static_cast<long long>(setup->pending[next++]);
-      } else {
-        --active;
-      }
+      if (!row.empty()) record(row);
+      const long long assign = take();
+      if (assign < 0) --active;
       MPI_Send(&assign, 1, MPI_LONG_LONG, status.MPI_SOURCE, kTagAssign, MPI_COMM_WORLD);
     }
   }
+  if (local.joinable()) local.join();
   std::signal(SIGINT, SIG_DFL);
   if (!setup) throw UsageError(setup_error);
   return finish("on the MPI ranks", *setup, sweep, ran, seconds_since(start), quiet);
