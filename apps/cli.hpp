@@ -101,6 +101,7 @@ Command add_residual_command(CLI::App& parent);
 Command add_bvp_command(CLI::App& parent);
 Command add_methods_command(CLI::App& parent);
 Command add_action_command(CLI::App& parent);
+Command add_sweep_command(CLI::App& parent);
 
 /// A problem file's spec and its Lagrangian (`fracvi residual`, `fracvi action`); UsageError for
 /// bad input.

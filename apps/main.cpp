@@ -19,11 +19,11 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", fracvi::version_string());
   app.require_subcommand(1);
   app.fallthrough(false);
-  std::vector<Command> commands{add_run_command(app),     add_convergence_command(app),
-                                add_compare_command(app), add_plot_command(app),
-                                add_weights_command(app), add_derivative_command(app),
-                                add_bvp_command(app),     add_residual_command(app),
-                                add_methods_command(app), add_action_command(app)};
+  std::vector<Command> commands{
+      add_run_command(app),    add_convergence_command(app), add_compare_command(app),
+      add_plot_command(app),   add_weights_command(app),     add_derivative_command(app),
+      add_bvp_command(app),    add_residual_command(app),    add_methods_command(app),
+      add_action_command(app), add_sweep_command(app)};
 
   std::string known;
   bool is_known = false;

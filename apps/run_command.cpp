@@ -74,18 +74,10 @@ Command add_run_command(CLI::App& parent) {
         prepare_output(opt->out, default_output(spec.name, "", opt->overrides));
 
     Solution solution;
-    if (options.tolerance > 0.0) {
-      // method.tolerance: N doubled from time.steps until the error estimate meets it.
-      integrator.reset();
-      solution = integrate_to_tolerance(problem, prepared.method, options);
-    } else {
-      {
-        ProgressBar progress(problem.steps, !opt->quiet);
-        integrator->run([&progress](const StepView& s) { progress.update(s.k); });
-        solution = integrator->take_solution();
-      }
-      // Accuracy, not consistency: Richardson from companion runs (analysis/error_estimate.hpp).
-      estimate_error(problem, prepared.method, options, solution);
+    {
+      ProgressBar progress(problem.steps, !opt->quiet);
+      solution = solve_prepared(prepared, std::move(integrator),
+                                [&progress](std::size_t k) { progress.update(k); });
     }
     if (!write_results("run", dir, [&] { write_run_output(dir, spec, solution); })) {
       return kExitNumericalFailure;

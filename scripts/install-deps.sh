@@ -19,6 +19,7 @@ packages=(
   python3-scipy                           # Python: sparse mass/damping as scipy.sparse matrices
   python3-mpmath                          # 50-digit reference RKCQ weights (tests/fractional/rkcq_reference.py)
   python3-dev pybind11-dev                # Python module (pybind11-dev does not pull Python.h)
+  libopenmpi-dev openmpi-bin              # mpirun -n P fracvi sweep (optional at configure time)
 )
 
 missing=()

@@ -24,6 +24,10 @@ C++ code as `fracvi run`: bad input raises ProblemError (a ValueError) with exac
 command line prints. Numerical failure is not an exception: the Solution has a status, a message
 and the trajectory up to the failure (or pass raise_on_failure=True).
 
+Parameter studies (`fracvi sweep`): fracvi.sweep(problem, {"model.alpha": [...], ...}, jobs=2)
+runs every case in-process on local threads and returns a SweepResult (NumPy columns);
+fracvi.plot_sweep draws a quantity against a parameter or as a heat map over two.
+
 Also here: Grünwald–Letnikov and convolution-quadrature weights (gl_weights, cq_weights), the
 paper's discrete operators on sequences (midpoint, delta_minus, delta_plus, frac_delta_minus,
 frac_delta_plus) and continuous Riemann–Liouville derivatives (rl_derivative).
@@ -39,6 +43,8 @@ import numpy as np
 from . import _fracvi
 from . import plot as _plotting  # before `def plot` below, which rebinds the name
 from . import plot_compare as _compare_figures  # idem for `def plot_compare`
+from . import plot_sweep as _sweep_plotting
+from .plot_sweep import SweepResult
 from ._fracvi import ProblemError
 
 __all__ = [
@@ -46,7 +52,8 @@ __all__ = [
     "BvpSolution", "solve_bvp", "methods", "problem_schema",
     "gl_weights", "cq_weights", "midpoint", "delta_minus", "delta_plus", "frac_delta_minus",
     "frac_delta_plus", "convolve_past", "convolve_future", "rl_derivative",
-    "rl_derivative_power", "fracel_residual", "action", "compare", "plot_compare",
+    "rl_derivative_power", "fracel_residual", "action", "compare", "plot_compare", "sweep",
+    "load_sweep", "plot_sweep", "SweepResult",
 ]
 
 ProblemError.__module__ = __name__
@@ -636,6 +643,64 @@ def plot(solution, directory=None, *, show=None):
 
 # ---------------------------------------------------------------------------------------------
 # The problem-file schema and the method registry
+
+def sweep(problem, parameters, *, jobs=1, combine="grid", save="final", out=None,
+          resume=False):
+    """Runs a parameter sweep (`fracvi sweep`, docs/sweep-file.md) and returns its table.
+
+    problem: the base problem (a Problem, the dict of a problem file, or a path to one).
+    parameters: {field: values} over fields of the problem schema, in the order of the grid (the
+    first varies slowest): a list or array of values, or a dict {"linspace": [start, stop, n]},
+    {"logspace": [start, stop, n]} (n values from start to stop evenly in log),
+    {"random": "uniform" | "loguniform", "low": a, "high": b, "count": n, "seed": s} or
+    {"random": "normal", "mean": m, "std": s, "count": n, "seed": s}; e.g.
+    {"model.damping_order": {"linspace": [0.2, 1.8, 6]}, "model.damping": [0.1, 1.0]}.
+    combine: "grid" (every combination) or "zip" (the i-th values together).
+    save: "summary" (no final state columns), "final" (x1..xd, v1..vd) or "trajectory" (also each
+    case's `fracvi run` files in out/cases/<case>/; needs out).
+    jobs: cases run at once on threads; each case runs on one thread unless the sweep sets
+    method.threads, so the numbers do not depend on jobs.
+    out: a directory for results.csv (appended as cases finish) and sweep.json, as `fracvi sweep
+    --out`; resume=True continues the sweep there.
+
+    Every case is checked before any runs; a case refused then, or one that fails, is a row with
+    its status and message, never an exception. A sweep that is not one (an unknown field, zipped
+    lists of different lengths, ...) raises ProblemError.
+    Returns a SweepResult: column name -> NumPy array in case order, and .parameters."""
+    if isinstance(problem, Problem):
+        document = {"problem": problem.to_dict()}
+    elif isinstance(problem, Mapping):
+        document = {"problem": _plain(problem)}
+    elif isinstance(problem, (str, os.PathLike)):
+        document = {"base": os.fspath(problem)}
+    else:
+        raise TypeError(f"sweep: problem must be a fracvi.Problem, a dict or a path, not "
+                        f"{type(problem).__name__}")
+    if not isinstance(parameters, Mapping):
+        raise TypeError("sweep: parameters must be a dict {field: values}")
+    document["sweep"] = {"combine": combine, "save": save,
+                         "parameters": [[k, _plain(v)] for k, v in parameters.items()]}
+    if save == "trajectory" and out is None:
+        raise ValueError('sweep: save="trajectory" writes files: give out=DIRECTORY')
+    columns, rows = _fracvi.sweep(document, "<fracvi.sweep>", os.getcwd(), int(jobs),
+                                  "" if out is None else os.fspath(out), bool(resume))
+    return _sweep_plotting.table(columns, rows)
+
+
+def load_sweep(path):
+    """The SweepResult of a results.csv written by `fracvi sweep` (or of its directory)."""
+    return _sweep_plotting.load(path)
+
+
+def plot_sweep(result, quantity="energy_final", *, x=None, y=None, file=None):
+    """A matplotlib Figure of `quantity` over a sweep (a SweepResult, or a results.csv path): a
+    heat map over two parameters (x, y; by default the sweep's two), or the quantity against one
+    parameter x. Cases that did not succeed are blank (heat map) or crosses (lines). Saved to
+    `file` if given."""
+    if isinstance(result, (str, os.PathLike)):
+        result = load_sweep(result)
+    return _sweep_plotting.plot(result, quantity, x=x, y=y, file=file)
+
 
 def problem_schema():
     """Every field of a problem file (the one schema of the reader, the writers, the docs and the

@@ -23,6 +23,7 @@
 #include <pybind11/stl.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -45,6 +46,7 @@
 #include "fracvi/io/problem_file.hpp"
 #include "fracvi/io/problem_schema.hpp"
 #include "fracvi/io/run.hpp"
+#include "fracvi/io/sweep.hpp"
 #include "fracvi/lagrangian/action.hpp"
 #include "fracvi/lagrangian/bvp.hpp"
 #include "fracvi/lagrangian/continuous_residual.hpp"
@@ -655,6 +657,60 @@ void bind(py::module_& m) {
             write_run_output(directory, spec ? *spec : r.spec, r.solution);
           },
           py::arg("directory"), py::arg("spec") = nullptr);
+
+  // fracvi.sweep: the cases of `fracvi sweep` on local threads; returns (columns, rows) of
+  // results.csv in case order, each row its fields as text (the Python side makes NumPy columns).
+  m.def(
+      "sweep",
+      [](py::handle document, const std::string& source, const std::string& directory, int jobs,
+         const std::string& out, bool resume) {
+        const nlohmann::json json = from_python(document, "", source);
+        SweepSpec sweep;
+        try {
+          sweep = make_sweep(json, source, directory);
+        } catch (const SweepError& e) {
+          throw ProblemError(e.what());
+        }
+        std::vector<std::pair<std::size_t, std::string>> rows;
+        {
+          py::gil_scoped_release release;
+          SweepCaseOptions options;
+          options.single_thread = true;
+          std::unique_ptr<SweepTable> table;
+          std::vector<std::size_t> pending;
+          if (!out.empty()) {
+            options.out = out;
+            try {
+              table = std::make_unique<SweepTable>(out, sweep, resume);
+            } catch (const SweepError& e) {
+              throw ProblemError(e.what());
+            }
+          }
+          for (const auto& c : sweep.cases) {
+            if (!table || !table->done().contains(c.index)) pending.push_back(c.index);
+          }
+          run_sweep_local(sweep, pending, jobs, options,
+                          [&](std::size_t index, const std::string& row) {
+                            if (table) {
+                              table->append(index, row);
+                            } else {
+                              rows.emplace_back(index, row);
+                            }
+                          });
+          if (table) {
+            table->finish();
+            rows = table->rows();
+          }
+          std::sort(rows.begin(), rows.end());
+        }
+        py::list out_rows;
+        for (const auto& [index, row] : rows) {
+          out_rows.append(split_csv_line(std::string_view(row).substr(0, row.size() - 1)));
+        }
+        return py::make_tuple(sweep_columns(sweep), out_rows);
+      },
+      py::arg("document"), py::arg("source"), py::arg("directory"), py::arg("jobs"), py::arg("out"),
+      py::arg("resume"));
 
   m.def("integrate", &run_problem, py::arg("spec"), py::arg("mirror"), py::arg("diagnostics"),
         py::arg("absolute_tolerance"), py::arg("history"), py::arg("start"));

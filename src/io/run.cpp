@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "fracvi/analysis/error_estimate.hpp"
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/io/lagrangian_problem.hpp"
 #include "fracvi/io/output.hpp"
@@ -51,6 +52,27 @@ PreparedRun prepare_run(ProblemSpec spec) {
   } catch (const ValidationError& e) {
     throw ProblemFileError(source + ": " + e.what());
   }
+}
+
+Solution solve_prepared(const PreparedRun& prepared, std::unique_ptr<Integrator> integrator,
+                        const std::function<void(std::size_t)>& on_step) {
+  if (prepared.options.tolerance > 0.0) {
+    // method.tolerance: N doubled from time.steps until the error estimate meets it.
+    integrator.reset();
+    return integrate_to_tolerance(prepared.problem, prepared.method, prepared.options);
+  }
+  if (!integrator) {
+    integrator = std::make_unique<Integrator>(prepared.problem, prepared.method, prepared.options);
+  }
+  if (on_step) {
+    integrator->run([&on_step](const StepView& s) { on_step(s.k); });
+  } else {
+    integrator->run();
+  }
+  Solution solution = integrator->take_solution();
+  // Accuracy, not consistency: Richardson from companion runs (analysis/error_estimate.hpp).
+  estimate_error(prepared.problem, prepared.method, prepared.options, solution);
+  return solution;
 }
 
 PreparedBvp prepare_bvp(ProblemSpec spec) {

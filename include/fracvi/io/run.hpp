@@ -3,6 +3,8 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
+#include <memory>
 #include <span>
 #include <string>
 
@@ -29,6 +31,15 @@ struct PreparedRun {
 /// forward, a scheme that does not apply or a step beyond its stability bound, or a model/option
 /// rule.
 PreparedRun prepare_run(ProblemSpec spec);
+
+/// What `fracvi run` computes for a prepared run, in one place for the CLI, sweeps and Python:
+/// with method.tolerance > 0 the doubling of integrate_to_tolerance(), otherwise one integration
+/// (`on_step(k)` after each step k, for progress) followed by its error estimate
+/// (estimate_error). `integrator`, if given, was built from `prepared` beforehand (the CLI builds
+/// it before preparing its output directory, so that set-up failures come first); null builds it
+/// here. Throws ValidationError for a problem the Integrator refuses.
+Solution solve_prepared(const PreparedRun& prepared, std::unique_ptr<Integrator> integrator = {},
+                        const std::function<void(std::size_t)>& on_step = {});
 
 /// A validated boundary value problem (`fracvi bvp`, Python's fracvi.solve_bvp) with its options.
 struct PreparedBvp {
