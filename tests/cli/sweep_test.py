@@ -270,6 +270,8 @@ position = [1.0]
 [problem.time]
 end = 10.0
 steps = 100
+[problem.method]
+scheme = "fvi-gl"  # the step numbers below are fvi-gl's (the default "auto" takes fvi-lobatto3)
 
 [sweep]
 combine = "zip"
