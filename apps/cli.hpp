@@ -26,6 +26,9 @@ class UsageError : public std::runtime_error {
 inline constexpr int kExitSuccess = 0;
 inline constexpr int kExitNumericalFailure = 1;
 inline constexpr int kExitBadInput = 2;
+/// Stopped by SIGINT, SIGTERM or SIGHUP (128 + SIGINT, the shell's convention for Ctrl-C); the
+/// files hold everything computed up to the signal, with status `interrupted`.
+inline constexpr int kExitInterrupted = 130;
 
 /// 17 significant digits: enough to round-trip every double.
 inline std::string format_number(double v) {

@@ -30,6 +30,14 @@ PreparedRun prepare_run(ProblemSpec spec) {
                              "\" is not a known scheme (available: " + scheme_names() + ")");
     }
     run.method = *method;
+    if (spec.checkpoint_every > 0 && !run.method.info().checkpoints) {
+      throw ProblemFileError(
+          source + ": output.checkpoint_every = " + std::to_string(spec.checkpoint_every) +
+          " is not available for method.scheme = \"" + spec.scheme +
+          "\": its stepper cannot save its state yet (schemes with "
+          "checkpoints: " +
+          scheme_names_with(&SchemeInfo::checkpoints) + "); set it to 0");
+    }
     validate(run.problem);
     validate(run.options);
     check_applicable(run.problem, run.method, run.options);

@@ -228,6 +228,32 @@ Status CqMidpointStepper::advance() {
   return Status::kSuccess;
 }
 
+void CqMidpointStepper::visit_state(StateArchive& archive) {
+  archive.expect("cq_midpoint.dimension", static_cast<std::size_t>(d_));
+  archive.expect("cq_midpoint.steps", n_steps_);
+  archive.count("cq_midpoint.k", k_);
+  if (k_ > n_steps_) throw CheckpointError("checkpoint record 'cq_midpoint.k' exceeds the steps");
+  archive.dense("cq_midpoint.x", x_cur_);
+  archive.dense("cq_midpoint.v", v_cur_);
+  archive.dense("cq_midpoint.p", p_);
+  archive.dense("cq_midpoint.force", force_);  // F_k
+  archive.dense("cq_midpoint.w", w_);          // M⁻¹F_k (energy account)
+  // Newton's predictor is the previous increment Δ_{k−1}: it changes the iterates, hence the
+  // last bits of a nonlinear step.
+  archive.dense("cq_midpoint.increment", dx_);
+  archive.dense("cq_midpoint.x1", x_first_);  // the mirror run starts from x_0, x_1
+  archive.number("cq_midpoint.fv", fv_);
+  archive.number("cq_midpoint.fw", fw_);
+  archive.number("cq_midpoint.work", work_);
+  archive.number("cq_midpoint.supplied", supplied_);
+  bool has_history = history_ != nullptr;
+  archive.flag("cq_midpoint.has_history", has_history);
+  if (has_history != (history_ != nullptr)) {
+    throw CheckpointError("checkpoint record 'cq_midpoint.has_history' does not match this run");
+  }
+  if (history_) history_->visit_state(archive);
+}
+
 // The y-equation (mirror_run.hpp) with D_k = R h^{−2α} Σ_{m=0}^{N−k} ω_m ỹ_{k+m}, all of it known
 // (explicit memory): a forward-running history fed with ỹ_N, ỹ_{N−1}, …, ỹ_j = y_j − y_N −
 // (t_N − t_j) v_0 (the shift of the reversed clock); kTaylorSplit adds P's force of the mirrored

@@ -86,6 +86,16 @@ std::optional<Method> parse_method(std::string_view name) {
   return std::nullopt;
 }
 
+std::string scheme_names_with(bool SchemeInfo::*property) {
+  std::string names;
+  for (const SchemeInfo* info : kSchemes) {
+    if (!(info->*property)) continue;
+    if (!names.empty()) names += ", ";
+    names += info->name;
+  }
+  return names;
+}
+
 std::string boundary_value_scheme_names() {
   std::string names;
   for (const SchemeInfo* info : kSchemes) {
@@ -117,12 +127,7 @@ void check_applicable(const InitialValueProblem& problem, const Method& method,
                           "(the direct sum for this scheme) or \"direct\"");
   }
   if (options.load == ForcingLoad::kMoments && !info.forcing_moments) {
-    std::string with;
-    for (const SchemeInfo* other : kSchemes) {
-      if (!other->forcing_moments) continue;
-      if (!with.empty()) with += ", ";
-      with += other->name;
-    }
+    const std::string with = scheme_names_with(&SchemeInfo::forcing_moments);
     throw ValidationError("method.load = \"moments\" is not available for method.scheme = \"" +
                           std::string(info.name) + "\" (schemes with it: " + with +
                           "); use \"pointwise\"");

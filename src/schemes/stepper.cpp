@@ -24,6 +24,10 @@ Status Stepper::step() noexcept {
   return fail(Status::kCallbackError, "the potential or the forcing threw");
 }
 
+void Stepper::visit_state(StateArchive&) {
+  throw CheckpointError("this scheme's stepper cannot save its state (no checkpoints)");
+}
+
 Status Stepper::fail(Status status, const char* format, ...) noexcept {
   va_list args;
   va_start(args, format);

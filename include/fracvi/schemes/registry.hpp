@@ -67,6 +67,10 @@ struct SchemeInfo {
   /// method.rel_tolerance (dopri5); the grid step h only samples its dense output, so the error
   /// follows the tolerances and the declared order is the order in the tolerance, not in h.
   bool adaptive = false;
+  /// Its stepper can save and restore its state (Stepper::visit_state), so that a run can write
+  /// checkpoints (`[output] checkpoint_every`) and be resumed bit-for-bit; refused before step 1
+  /// otherwise.
+  bool checkpoints = false;
   std::string_view applies_to;      ///< where it applies, in words ("every model", "2α = 1")
   std::string_view stability_rule;  ///< the stability bound in words
   /// The order the scheme reaches on smooth solutions of this model.
@@ -87,6 +91,8 @@ const SchemeInfo* find_scheme(std::string_view name);
 
 /// "fvi-gl, fvi-bdf2" (for messages).
 std::string scheme_names();
+/// The names of the schemes with a property, e.g. scheme_names_with(&SchemeInfo::checkpoints).
+std::string scheme_names_with(bool SchemeInfo::*property);
 
 /// The registry as text columns, one entry per scheme with the keys name, order, stages,
 /// variational, mirror, exact_balance, applies_to, stability, summary, reference (what

@@ -24,6 +24,7 @@
 #include <string_view>
 
 #include "fracvi/core/matrix.hpp"
+#include "fracvi/core/state_archive.hpp"
 #include "fracvi/core/status.hpp"
 #include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/schemes/options.hpp"
@@ -78,6 +79,12 @@ class Stepper {
   /// The damping memory's implementation: "direct", "fast", "local" or "none" (what
   /// method.history = "auto" chose; Solution::history).
   [[nodiscard]] virtual std::string_view history_kind() const { return "none"; }
+  /// Saves or restores everything the next steps depend on (core/state_archive.hpp): the state at
+  /// step k, the step index, the damping memory, the energy account and any predictor carried
+  /// from step to step, so that a restored stepper continues bit-for-bit. A scheme that supports
+  /// it says so in its registry row (SchemeInfo::checkpoints); the default refuses with
+  /// CheckpointError.
+  virtual void visit_state(StateArchive& archive);
   /// Newton iterations of the last step (1 for a linear problem; 0 for an explicit step).
   [[nodiscard]] int last_iterations() const { return last_iterations_; }
 
