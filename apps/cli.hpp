@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "fracvi/core/status.hpp"
 #include "fracvi/io/problem_file.hpp"
 #include "fracvi/lagrangian/continuous_residual.hpp"
 #include "fracvi/lagrangian/lagrangian.hpp"
@@ -82,6 +83,13 @@ std::filesystem::path default_output(const std::string& name, const std::string&
 /// returns false (the command then exits 1: the results are lost, not the input wrong).
 bool write_results(const char* command, const std::filesystem::path& dir,
                    const std::function<void()>& write);
+
+/// --quiet silences a command's summary, not its failure: a run that did not succeed (exit 1)
+/// prints one line on stderr, "fracvi <command>: <name>: <status>: <message> (<where>; files in
+/// <dir>)" (issue 14).
+void report_quiet_failure(const char* command, const std::string& name, Status status,
+                          const std::string& message, const std::string& where,
+                          const std::filesystem::path& dir);
 
 /// Each command registers itself on the app and returns the function that runs it.
 struct Command {

@@ -228,11 +228,10 @@ Command add_run_command(CLI::App& parent) {
         std::printf("  resume            fracvi run --resume %s\n", dir.string().c_str());
       }
     } else if (!solution.ok()) {
-      // --quiet silences the summary, not a failure: one line on stderr (issue 14).
-      std::fprintf(stderr, "fracvi run: %s: %s%s%s (after %zu of %lld steps; files in %s)\n",
-                   spec.name.c_str(), to_string(solution.status).data(),
-                   solution.message.empty() ? "" : ": ", solution.message.c_str(),
-                   solution.steps_done, spec.steps, dir.string().c_str());
+      report_quiet_failure("run", spec.name, solution.status, solution.message,
+                           "after " + std::to_string(solution.steps_done) + " of " +
+                               std::to_string(spec.steps) + " steps",
+                           dir);
     }
     // A signal during the error estimate leaves the trajectory complete (its status says so)
     // but the command was still asked to stop.

@@ -500,16 +500,16 @@ def solve_bvp(problem, *, sum="extended", solver="auto", tolerance=None, raise_o
     the written trajectory.csv, …). The rest are the options of `fracvi bvp`: sum ("extended":
     the paper's printed DiscFracEL, or "printed": the exact equations of the printed action sum),
     solver ("auto", "dense" or "krylov") and tolerance (converged when every equation is at most
-    this in absolute value; default 1e-10).
+    this in absolute value; default None: 1e-10, or the round-off floor of the equations when
+    that is larger, as it is for many steps; a tolerance given is taken as given).
 
     Returns a BvpSolution. Numerical failure is a status (the best iterate is returned);
     raise_on_failure=True raises IntegrationError instead. Bad input raises ProblemError.
     """
     problem = _with_fields(_as_problem(problem), fields, "solve_bvp", _BVP_FIELD_SECTIONS,
                            _BVP_OPTIONS)
-    if tolerance is None:
-        tolerance = _fracvi.default_bvp_tolerance
-    run = _fracvi.solve_bvp(problem._spec, sum, solver, float(tolerance))
+    run = _fracvi.solve_bvp(problem._spec, sum, solver,
+                            None if tolerance is None else float(tolerance))
     solution = BvpSolution(run, problem)
     if raise_on_failure and not solution.ok:
         raise IntegrationError(solution)

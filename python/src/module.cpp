@@ -331,7 +331,7 @@ struct BvpRun {
 /// `fracvi bvp` from Python: prepare_bvp (the CLI's checks and messages: no [boundary], a scheme
 /// without a boundary value form, …) and the CLI's --sum, --solver and --tolerance.
 std::unique_ptr<BvpRun> run_bvp(const ProblemSpec& spec, const std::string& sum,
-                                const std::string& solver, double tolerance) {
+                                const std::string& solver, std::optional<double> tolerance) {
   PreparedBvp prepared;
   try {
     prepared = prepare_bvp(spec);
@@ -354,11 +354,16 @@ std::unique_ptr<BvpRun> run_bvp(const ProblemSpec& spec, const std::string& sum,
   } else {
     throw py::value_error("solver = '" + solver + "' must be 'auto', 'dense' or 'krylov'");
   }
-  if (!(tolerance > 0.0) || !std::isfinite(tolerance)) {
-    throw py::value_error("tolerance = " + repr_text(py::float_(tolerance)) +
-                          " must be a positive number");
+  // None: the default, which rises to the round-off floor (BvpOptions::above_round_off); a
+  // tolerance given is taken as given.
+  if (tolerance) {
+    if (!(*tolerance > 0.0) || !std::isfinite(*tolerance)) {
+      throw py::value_error("tolerance = " + repr_text(py::float_(*tolerance)) +
+                            " must be a positive number");
+    }
+    prepared.options.residual_tolerance = *tolerance;
+    prepared.options.above_round_off = false;
   }
-  prepared.options.residual_tolerance = tolerance;
   auto run = std::make_unique<BvpRun>();
   run->spec = spec;
   // The Lagrangian is a compiled formula: no Python runs during Newton's iterations.
@@ -774,7 +779,6 @@ void bind(py::module_& m) {
 
   m.def("solve_bvp", &run_bvp, py::arg("spec"), py::arg("sum"), py::arg("solver"),
         py::arg("tolerance"));
-  m.attr("default_bvp_tolerance") = BvpOptions{}.residual_tolerance;
 
   // --- weights -----------------------------------------------------------------------------
   m.def(
