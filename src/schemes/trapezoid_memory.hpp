@@ -76,6 +76,19 @@ class NodeAveragedTrapezoid {
   [[nodiscard]] std::string_view kind() const {
     return difference_ ? difference_->kind() : (average_ ? average_->kind() : "none");
   }
+  /// Saves or restores both histories and the carried sums (core/state_archive.hpp).
+  void visit_state(StateArchive& archive) {
+    bool has_difference = difference_ != nullptr, has_average = average_ != nullptr;
+    archive.flag("trapezoid.difference", has_difference);
+    archive.flag("trapezoid.average", has_average);
+    if (has_difference != (difference_ != nullptr) || has_average != (average_ != nullptr)) {
+      throw CheckpointError("checkpoint records 'trapezoid.*' do not match this run");
+    }
+    if (difference_) difference_->visit_state(archive);
+    if (average_) average_->visit_state(archive);
+    archive.dense("trapezoid.s1", s1_);
+    archive.dense("trapezoid.part", part_);
+  }
   [[nodiscard]] std::size_t memory_bytes() const {
     return (difference_ ? difference_->memory_bytes() : 0) +
            (average_ ? average_->memory_bytes() : 0);

@@ -121,7 +121,10 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"fvi-gl", 0.5, HistoryKind::kAuto, 1, "none"},  // Lemma 5.3
                       Case{"fvi-gl", 1.0, HistoryKind::kAuto, 3, "local"},
                       Case{"fvi-bdf2", 0.75, HistoryKind::kDirect, 1, "direct"},
-                      Case{"fvi-bdf2", 0.75, HistoryKind::kFast, 5, "fast"}),
+                      Case{"fvi-bdf2", 0.75, HistoryKind::kFast, 5, "fast"},
+                      Case{"fvi-midpoint", 0.75, HistoryKind::kDirect, 1, "direct"},
+                      Case{"fvi-midpoint", 0.75, HistoryKind::kFast, 3, "fast"},
+                      Case{"fvi-midpoint", 0.5, HistoryKind::kAuto, 1, "local"}),
     [](const auto& param_info) {
       std::string name = std::string(param_info.param.scheme) + "_" +
                          std::string(to_string(param_info.param.history)) + "_alpha" +
