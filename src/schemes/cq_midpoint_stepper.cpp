@@ -229,10 +229,7 @@ Status CqMidpointStepper::advance() {
 }
 
 void CqMidpointStepper::visit_state(StateArchive& archive) {
-  archive.expect("cq_midpoint.dimension", static_cast<std::size_t>(d_));
-  archive.expect("cq_midpoint.steps", n_steps_);
-  archive.count("cq_midpoint.k", k_);
-  if (k_ > n_steps_) throw CheckpointError("checkpoint record 'cq_midpoint.k' exceeds the steps");
+  visit_step_index(archive, d_, n_steps_, k_);
   archive.dense("cq_midpoint.x", x_cur_);
   archive.dense("cq_midpoint.v", v_cur_);
   archive.dense("cq_midpoint.p", p_);
@@ -246,12 +243,7 @@ void CqMidpointStepper::visit_state(StateArchive& archive) {
   archive.number("cq_midpoint.fw", fw_);
   archive.number("cq_midpoint.work", work_);
   archive.number("cq_midpoint.supplied", supplied_);
-  bool has_history = history_ != nullptr;
-  archive.flag("cq_midpoint.has_history", has_history);
-  if (has_history != (history_ != nullptr)) {
-    throw CheckpointError("checkpoint record 'cq_midpoint.has_history' does not match this run");
-  }
-  if (history_) history_->visit_state(archive);
+  archive.optional("cq_midpoint.history", history_.get());
 }
 
 // The y-equation (mirror_run.hpp) with D_k = R h^{−2α} Σ_{m=0}^{N−k} ω_m ỹ_{k+m}, all of it known

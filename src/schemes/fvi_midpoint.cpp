@@ -108,10 +108,7 @@ class TrapezoidalMidpointStepper final : public Stepper {
                                     std::span<const std::size_t> steps) const override;
 
   void visit_state(StateArchive& archive) override {
-    archive.expect("fvi_midpoint.dimension", static_cast<std::size_t>(d_));
-    archive.expect("fvi_midpoint.steps", n_steps_);
-    archive.count("fvi_midpoint.k", k_);
-    if (k_ > n_steps_) throw CheckpointError("checkpoint record 'fvi_midpoint.k' exceeds steps");
+    visit_step_index(archive, d_, n_steps_, k_);
     archive.dense("fvi_midpoint.x", x_cur_);
     archive.dense("fvi_midpoint.v", v_cur_);
     archive.dense("fvi_midpoint.p", p_);
@@ -122,12 +119,7 @@ class TrapezoidalMidpointStepper final : public Stepper {
     archive.dense("fvi_midpoint.x1", x_first_);               // the mirror run starts from x_0, x_1
     archive.number("fvi_midpoint.work", work_);
     archive.number("fvi_midpoint.supplied", supplied_);
-    bool has_memory = memory_ != nullptr;
-    archive.flag("fvi_midpoint.has_memory", has_memory);
-    if (has_memory != (memory_ != nullptr)) {
-      throw CheckpointError("checkpoint record 'fvi_midpoint.has_memory' does not match this run");
-    }
-    if (memory_) memory_->visit_state(archive);
+    archive.optional("fvi_midpoint.memory", memory_.get());
   }
 
  private:

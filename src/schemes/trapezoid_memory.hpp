@@ -78,14 +78,8 @@ class NodeAveragedTrapezoid {
   }
   /// Saves or restores both histories and the carried sums (core/state_archive.hpp).
   void visit_state(StateArchive& archive) {
-    bool has_difference = difference_ != nullptr, has_average = average_ != nullptr;
-    archive.flag("trapezoid.difference", has_difference);
-    archive.flag("trapezoid.average", has_average);
-    if (has_difference != (difference_ != nullptr) || has_average != (average_ != nullptr)) {
-      throw CheckpointError("checkpoint records 'trapezoid.*' do not match this run");
-    }
-    if (difference_) difference_->visit_state(archive);
-    if (average_) average_->visit_state(archive);
+    archive.optional("trapezoid.difference", difference_.get());
+    archive.optional("trapezoid.average", average_.get());
     archive.dense("trapezoid.s1", s1_);
     archive.dense("trapezoid.part", part_);
   }

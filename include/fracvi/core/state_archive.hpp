@@ -53,6 +53,18 @@ class StateArchive {
   void expect(std::string_view name, std::size_t value);
   /// A flag, stored as a count 0/1.
   void flag(std::string_view name, bool& value);
+  /// An optional part of the state (a damping memory that only damped runs have): whether it
+  /// exists, checked against this run, then the part's own visit_state(*this).
+  template <class Part>
+  void optional(std::string_view name, Part* part) {
+    bool present = part != nullptr;
+    flag(name, present);
+    if (present != (part != nullptr)) {
+      throw CheckpointError("checkpoint record '" + std::string(name) +
+                            "' does not match this run");
+    }
+    if (part != nullptr) part->visit_state(*this);
+  }
 };
 
 /// Saves records into a byte string.

@@ -97,6 +97,10 @@ class Stepper {
   Stepper() = default;
   /// The scheme's step. May throw what a user callback throws; must not allocate.
   virtual Status advance() = 0;
+  /// The records every visit_state starts with: the dimension and the step count (checked against
+  /// this run) and the step index k (restored; at most `steps`).
+  static void visit_step_index(StateArchive& archive, Eigen::Index dimension, std::size_t steps,
+                               std::size_t& k);
   /// Records a failure (printf-style cause) and returns its status.
   Status fail(Status status, const char* format, ...) noexcept;
   void set_iterations(int iterations) noexcept { last_iterations_ = iterations; }
