@@ -47,11 +47,13 @@ Command add_bvp_command(CLI::App& parent) {
   app->add_option("--solver", opt->solver,
                   "linear solver: auto, dense (LU of the assembled Jacobian) or krylov (GMRES "
                   "with a banded preconditioner)");
-  app->add_option("--tolerance", opt->tolerance,
-                  "converged when every equation is at most this in absolute value (1e-10)");
+  CLI::Option* tolerance = app->add_option(
+      "--tolerance", opt->tolerance,
+      "converged when every equation is at most this in absolute value (default: 1e-10, or the "
+      "round-off floor of the equations when that is larger, as it is for many steps)");
   app->add_flag("--quiet", opt->quiet, "print nothing but errors");
 
-  auto run = [opt]() {
+  auto run = [opt, tolerance]() {
     PreparedBvp prepared;
     try {
       prepared = prepare_bvp(load_problem(opt->file, opt->overrides));
@@ -82,6 +84,8 @@ Command add_bvp_command(CLI::App& parent) {
         throw UsageError("--tolerance = " + format_number(opt->tolerance) + " must be positive");
       }
       options.residual_tolerance = opt->tolerance;
+      // A tolerance the user gave is taken as given; the default rises to the round-off floor.
+      options.above_round_off = tolerance->count() == 0;
       validate(options);
     } catch (const ValidationError& e) {
       throw UsageError(spec.source + ": " + e.what());
@@ -101,7 +105,7 @@ Command add_bvp_command(CLI::App& parent) {
                   solution.ok() ? "success" : to_string(solution.status).data(),
                   solution.message.empty() ? "" : ": ", solution.message.c_str());
       std::printf("  residual          max |F| = %.3e  (tolerance %.1e, round-off floor ~%.1e)\n",
-                  solution.residual_norm, options.residual_tolerance, solution.residual_floor);
+                  solution.residual_norm, solution.residual_tolerance, solution.residual_floor);
       std::printf("  newton            %d iterations, %zu GMRES iterations, %s\n",
                   solution.newton_iterations, solution.linear_iterations,
                   solution.linear_solver.c_str());
@@ -112,6 +116,11 @@ Command add_bvp_command(CLI::App& parent) {
       std::printf("  wall time         %.3f s\n", solution.wall_time_seconds);
       std::printf("  output            %s/{trajectory.csv,summary.json,problem.toml}\n",
                   dir.string().c_str());
+    } else if (!solution.ok()) {
+      char where[64];
+      std::snprintf(where, sizeof where, "best iterate written: max |F| = %.3e",
+                    solution.residual_norm);
+      report_quiet_failure("bvp", spec.name, solution.status, solution.message, where, dir);
     }
     return solution.ok() ? kExitSuccess : kExitNumericalFailure;
   };

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "fracvi/core/status.hpp"
 #include "fracvi/io/problem_file.hpp"
 #include "fracvi/lagrangian/continuous_residual.hpp"
 #include "fracvi/lagrangian/lagrangian.hpp"
@@ -26,6 +27,9 @@ class UsageError : public std::runtime_error {
 inline constexpr int kExitSuccess = 0;
 inline constexpr int kExitNumericalFailure = 1;
 inline constexpr int kExitBadInput = 2;
+/// Stopped by SIGINT, SIGTERM or SIGHUP (128 + SIGINT, the shell's convention for Ctrl-C); the
+/// files hold everything computed up to the signal, with status `interrupted`.
+inline constexpr int kExitInterrupted = 130;
 
 /// 17 significant digits: enough to round-trip every double.
 inline std::string format_number(double v) {
@@ -84,6 +88,13 @@ std::filesystem::path default_output(const std::string& name, const std::string&
 /// returns false (the command then exits 1: the results are lost, not the input wrong).
 bool write_results(const char* command, const std::filesystem::path& dir,
                    const std::function<void()>& write);
+
+/// --quiet silences a command's summary, not its failure: a run that did not succeed (exit 1)
+/// prints one line on stderr, "fracvi <command>: <name>: <status>: <message> (<where>; files in
+/// <dir>)" (issue 14).
+void report_quiet_failure(const char* command, const std::string& name, Status status,
+                          const std::string& message, const std::string& where,
+                          const std::filesystem::path& dir);
 
 /// Each command registers itself on the app and returns the function that runs it.
 struct Command {

@@ -89,6 +89,14 @@ std::filesystem::path default_output(const std::string& name, const std::string&
   return std::filesystem::path("fracvi-out") / (name + suffix + tail);
 }
 
+void report_quiet_failure(const char* command, const std::string& name, Status status,
+                          const std::string& message, const std::string& where,
+                          const std::filesystem::path& dir) {
+  std::fprintf(stderr, "fracvi %s: %s: %s%s%s (%s; files in %s)\n", command, name.c_str(),
+               to_string(status).data(), message.empty() ? "" : ": ", message.c_str(),
+               where.c_str(), dir.string().c_str());
+}
+
 bool write_results(const char* command, const std::filesystem::path& dir,
                    const std::function<void()>& write) {
   try {

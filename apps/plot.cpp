@@ -1,7 +1,10 @@
 #include "plot.hpp"
 
+#include <sys/wait.h>
+
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 namespace fracvi::cli {
@@ -26,6 +29,9 @@ std::string shell_quoted(const std::string& s) {
   return q + "'";
 }
 
+// plot.py's exit status for a malformed trajectory.csv or summary.json (MALFORMED_EXIT there).
+constexpr int kMalformedInput = 3;
+
 // Runs the script `name` on `dir`; "" on success, else a one-line note (the log is kept in dir).
 std::string run_plot_script(const std::string& name, const std::filesystem::path& dir) {
   // Debian's interpreter: the first python3 on PATH may be another one without matplotlib.
@@ -37,7 +43,18 @@ std::string run_plot_script(const std::string& name, const std::filesystem::path
   const std::string cmd = shell_quoted(python) + " " + shell_quoted(script.string()) + " " +
                           shell_quoted(dir.string()) + " >/dev/null 2>" +
                           shell_quoted(log.string());
-  if (std::system(cmd.c_str()) != 0) {
+  const int status = std::system(cmd.c_str());
+  if (status != 0) {
+    // The script's exit status 3 (plot.py MALFORMED_EXIT): the input files are malformed, and
+    // its one line names the file, the line and what is wrong — not matplotlib's fault.
+    if (WIFEXITED(status) && WEXITSTATUS(status) == kMalformedInput) {
+      std::ifstream in(log);
+      std::string line;
+      std::getline(in, line);
+      std::error_code ignored;
+      std::filesystem::remove(log, ignored);
+      return "not drawn: malformed input: " + line;
+    }
     return "not drawn: matplotlib failed (is python3-matplotlib installed?), see " + log.string();
   }
   std::filesystem::remove(log);

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -14,10 +15,12 @@
 #include "fracvi/core/error.hpp"
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/io/checkpoint.hpp"
 #include "fracvi/io/lagrangian_problem.hpp"
 #include "fracvi/io/output.hpp"
 #include "fracvi/io/problem_file.hpp"
 #include "fracvi/io/run.hpp"
+#include "interrupt.hpp"
 #include "plot.hpp"
 #include "progress.hpp"
 
@@ -27,6 +30,7 @@ Command add_run_command(CLI::App& parent) {
   struct Options {
     std::string file;
     std::string out;
+    std::string resume;
     std::vector<std::string> overrides;
     bool quiet = false;
     bool no_plot = false;
@@ -38,7 +42,8 @@ Command add_run_command(CLI::App& parent) {
       "variational integrator (DiscEqs) and write trajectory.csv, summary.json, problem.toml and "
       "plots into the output directory. Without a problem file, runs the built-in problem (a "
       "forced Duffing oscillator with Bagley-Torvik damping). Exit status: 0 success, 1 "
-      "numerical failure (files still written), 2 bad input.");
+      "numerical failure (files still written), 2 bad input, 130 interrupted by SIGINT, SIGTERM "
+      "or SIGHUP (files written up to the signal, status interrupted).");
   app->add_option("problem", opt->file, "problem file (TOML); see docs/problem-file.md");
   app->add_option("--out", opt->out, "output directory (default ./fracvi-out/<problem name>)");
   app->add_option("--set", opt->overrides,
@@ -47,19 +52,42 @@ Command add_run_command(CLI::App& parent) {
                 "print nothing but errors (no summary, no progress bar; a progress bar is shown on "
                 "a terminal for runs longer than a second)");
   app->add_flag("--no-plot", opt->no_plot, "do not draw the PNG plots");
+  app->add_option("--resume", opt->resume,
+                  "continue the run in this output directory from its checkpoint ([output] "
+                  "checkpoint_every), with its problem.toml; the result is bit-for-bit that of an "
+                  "uninterrupted run")
+      ->type_name("DIR");
 
   auto run = [opt]() {
+    // From here to the end of the command SIGINT, SIGTERM and SIGHUP stop the run at the next
+    // step (interrupt.hpp); the files are written and the exit status is 130.
+    const InterruptGuard interrupt;
     PreparedRun prepared;
+    std::optional<Checkpoint> checkpoint;
     try {
-      prepared = prepare_run(opt->file.empty() ? parse_problem(default_problem_toml(),
-                                                               "<built-in problem>", opt->overrides)
-                                               : load_problem(opt->file, opt->overrides));
+      if (!opt->resume.empty()) {
+        if (!opt->file.empty() || !opt->overrides.empty() || !opt->out.empty()) {
+          throw UsageError("--resume " + opt->resume +
+                           ": a resumed run continues the problem.toml of its directory into it; "
+                           "give no problem file, --set or --out with --resume");
+        }
+        checkpoint = read_checkpoint(opt->resume);
+        prepared = prepare_run(checkpoint->spec);
+      } else {
+        prepared =
+            prepare_run(opt->file.empty() ? parse_problem(default_problem_toml(),
+                                                          "<built-in problem>", opt->overrides)
+                                          : load_problem(opt->file, opt->overrides));
+      }
     } catch (const ProblemFileError& e) {
       throw UsageError(e.what());
+    } catch (const CheckpointError& e) {
+      throw UsageError("--resume " + std::string(e.what()));
     }
     const ProblemSpec& spec = prepared.spec;
     const InitialValueProblem& problem = prepared.problem;
-    const IntegratorOptions& options = prepared.options;
+    IntegratorOptions& options = prepared.options;
+    options.interrupt = [] { return InterruptGuard::received() != 0; };
 
     // Everything that can fail before step 1 fails here, in this order: the set-up of the
     // integrator (its storage and the scheme's workspace are allocated now), then the output
@@ -67,21 +95,57 @@ Command add_run_command(CLI::App& parent) {
     std::unique_ptr<Integrator> integrator;
     try {
       integrator = std::make_unique<Integrator>(problem, prepared.method, options);
+      if (checkpoint) restore_checkpoint(*checkpoint, *integrator);
     } catch (const ValidationError& e) {
       throw UsageError(spec.source + ": " + e.what());
+    } catch (const CheckpointError& e) {
+      throw UsageError("--resume " + std::string(e.what()));
     }
     const std::filesystem::path dir =
-        prepare_output(opt->out, default_output(spec.name, "", opt->overrides));
+        checkpoint ? prepare_output(opt->resume, {})
+                   : prepare_output(opt->out, default_output(spec.name, "", opt->overrides));
+    // [output] checkpoint_every: the state after every n-th step, and after the step at which a
+    // signal arrived (the integrator stops before the next one), so that --resume loses nothing.
+    const auto every = static_cast<std::size_t>(spec.checkpoint_every);
+    bool checkpoint_warned = false;
+    // The integrator is handed to solve_prepared (which owns it while it runs).
+    Integrator* const stepping = integrator.get();
+    const auto save_checkpoint = [&](std::size_t k) {
+      if (every == 0 || k == 0 || stepping->status() != Status::kRunning) return;
+      if (k % every != 0 && InterruptGuard::received() == 0) return;
+      try {
+        write_checkpoint(dir, spec, *stepping);
+      } catch (const std::exception& e) {
+        // A lost checkpoint does not stop the run it protects: said once, the run goes on.
+        if (!checkpoint_warned) {
+          std::fprintf(stderr,
+                       "fracvi run: the checkpoint after step %zu could not be written "
+                       "(the run goes on): %s\n",
+                       k, e.what());
+        }
+        checkpoint_warned = true;
+      }
+    };
 
     Solution solution;
     {
       ProgressBar progress(problem.steps, !opt->quiet);
-      solution = solve_prepared(prepared, std::move(integrator),
-                                [&progress](std::size_t k) { progress.update(k); });
+      solution = solve_prepared(prepared, std::move(integrator), [&](std::size_t k) {
+        progress.update(k);
+        save_checkpoint(k);
+      });
     }
     if (!write_results("run", dir, [&] { write_run_output(dir, spec, solution); })) {
       return kExitNumericalFailure;
     }
+    // Kept only where it can serve: an interrupted run. A finished or failed run (a failure is
+    // deterministic: a resumed run would fail again) has nothing left to resume.
+    if (every > 0 && solution.status != Status::kInterrupted) {
+      std::error_code ignored;
+      std::filesystem::remove(dir / kCheckpointFile, ignored);
+    }
+    const bool resumable = every > 0 && solution.status == Status::kInterrupted &&
+                           std::filesystem::exists(dir / kCheckpointFile);
 
     std::string plot_note;
     if (opt->no_plot) {
@@ -153,13 +217,18 @@ Command add_run_command(CLI::App& parent) {
       std::printf("  output            %s/{trajectory.csv,summary.json,problem.toml%s}\n",
                   dir.string().c_str(), !opt->no_plot && plot_note.empty() ? ",*.png" : "");
       if (!plot_note.empty()) std::printf("  plots             %s\n", plot_note.c_str());
+      if (resumable) {
+        std::printf("  resume            fracvi run --resume %s\n", dir.string().c_str());
+      }
     } else if (!solution.ok()) {
-      // --quiet silences the summary, not a failure: one line on stderr (issue 14).
-      std::fprintf(stderr, "fracvi run: %s: %s%s%s (after %zu of %lld steps; files in %s)\n",
-                   spec.name.c_str(), to_string(solution.status).data(),
-                   solution.message.empty() ? "" : ": ", solution.message.c_str(),
-                   solution.steps_done, spec.steps, dir.string().c_str());
+      report_quiet_failure("run", spec.name, solution.status, solution.message,
+                           "after " + std::to_string(solution.steps_done) + " of " +
+                               std::to_string(spec.steps) + " steps",
+                           dir);
     }
+    // A signal during the error estimate leaves the trajectory complete (its status says so)
+    // but the command was still asked to stop.
+    if (InterruptGuard::received() != 0) return kExitInterrupted;
     return solution.ok() ? kExitSuccess : kExitNumericalFailure;
   };
   return {app, run};

@@ -311,7 +311,7 @@ class Solution:
     dissipated = _view("dissipated", "W_k (NaN with diagnostics=False)")
     balance = _view("balance", "E_k + W_k − E_0 (NaN with diagnostics=False)")
     status = _view("status", '"success", "newton-failure", "non-finite", "callback-error", '
-                   '"unstable" or "inaccurate" (docs/conventions.md)')
+                   '"unstable", "inaccurate" or "interrupted" (docs/conventions.md)')
     ok = _view("ok", "status == 'success'")
     message = _view("message", "empty on success; otherwise the step, the time and the cause")
     steps = _view("steps", "completed steps (rows 0 … steps are valid)")
@@ -380,12 +380,23 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostic
     "inaccurate" by its health checks) returns a Solution with status != "success", its message
     and the trajectory so far; raise_on_failure=True raises
     IntegrationError instead (with .solution). Bad input raises ProblemError / ValueError.
+
+    Ctrl-C (SIGINT) stops the run within about 0.1 s: the KeyboardInterrupt (or whatever the
+    signal handler raised) propagates with the partial solution as its attribute .solution
+    (status "interrupted", the trajectory up to the last completed step).
     """
     problem = _with_fields(_as_problem(problem), fields, "integrate", _FIELD_SECTIONS,
                            _RUN_OPTIONS)
     run = _fracvi.integrate(problem._spec, bool(mirror), bool(diagnostics),
                             float(newton_absolute_tolerance), history or "", start)
     solution = Solution(run, problem)
+    if run.interrupt is not None:
+        # Ctrl-C (or another signal whose handler raised) during the run: the run stopped at the
+        # next check (about every 0.1 s) with status "interrupted"; its exception is raised here
+        # with the trajectory so far attached.
+        interrupt = run.interrupt
+        interrupt.solution = solution
+        raise interrupt
     if raise_on_failure and not solution.ok:
         raise IntegrationError(solution)
     return solution
@@ -570,16 +581,16 @@ def solve_bvp(problem, *, sum="extended", solver="auto", tolerance=None, raise_o
     the written trajectory.csv, …). The rest are the options of `fracvi bvp`: sum ("extended":
     the paper's printed DiscFracEL, or "printed": the exact equations of the printed action sum),
     solver ("auto", "dense" or "krylov") and tolerance (converged when every equation is at most
-    this in absolute value; default 1e-10).
+    this in absolute value; default None: 1e-10, or the round-off floor of the equations when
+    that is larger, as it is for many steps; a tolerance given is taken as given).
 
     Returns a BvpSolution. Numerical failure is a status (the best iterate is returned);
     raise_on_failure=True raises IntegrationError instead. Bad input raises ProblemError.
     """
     problem = _with_fields(_as_problem(problem), fields, "solve_bvp", _BVP_FIELD_SECTIONS,
                            _BVP_OPTIONS)
-    if tolerance is None:
-        tolerance = _fracvi.default_bvp_tolerance
-    run = _fracvi.solve_bvp(problem._spec, sum, solver, float(tolerance))
+    run = _fracvi.solve_bvp(problem._spec, sum, solver,
+                            None if tolerance is None else float(tolerance))
     solution = BvpSolution(run, problem)
     if raise_on_failure and not solution.ok:
         raise IntegrationError(solution)
@@ -711,13 +722,16 @@ def problem_schema():
 
 
 # integrate()'s keywords from [method] and [output] (the "history" key is a run option there).
+# Not keywords: `history` (a run option below) and `checkpoint_every` (the checkpoints of
+# `fracvi run`'s output directory; integrate() writes none and refuses a problem that asks).
+_NOT_KEYWORDS = ("history", "checkpoint_every")
 _FIELD_SECTIONS = {row["key"]: row["section"] for row in _fracvi.problem_schema()
-                   if row["section"] in ("method", "output") and row["key"] != "history"}
+                   if row["section"] in ("method", "output") and row["key"] not in _NOT_KEYWORDS}
 _RUN_OPTIONS = ("newton_absolute_tolerance", "mirror", "diagnostics", "history", "start",
                 "raise_on_failure")
 # solve_bvp()'s keywords: every key of [method] and [output] but those of the initial value
 # drivers (the error estimate and its tolerance; solve_bvp's own `tolerance` is its residual's).
-_IVP_ONLY = ("error_estimate", "tolerance", "max_steps")
+_IVP_ONLY = ("error_estimate", "tolerance", "max_steps", "checkpoint_every")
 _BVP_FIELD_SECTIONS = {row["key"]: row["section"] for row in _fracvi.problem_schema()
                        if row["section"] in ("method", "output") and row["key"] not in _IVP_ONLY}
 _BVP_OPTIONS = ("sum", "solver", "tolerance", "raise_on_failure")

@@ -26,6 +26,32 @@ MAX_IMAGE = 1000  # pixels per axis of the space-time image
 FIGSIZE = (8, 5)
 DPI = 100
 FILES = ("trajectory.png", "phase.png", "energy.png", "spacetime.png")
+COLUMNS = ("t", "energy", "dissipated", "balance")  # besides x1..xd, v1..vd
+MALFORMED_EXIT = 3  # the script's exit status for malformed input (apps/plot.cpp reads it)
+
+
+class MalformedInput(ValueError):
+    """trajectory.csv or summary.json is not what `fracvi run` writes: the message names the
+    file, the line and what is wrong (not matplotlib's fault)."""
+
+
+def _locate_bad_line(path, names):
+    """The first line of the CSV at `path` that does not hold len(names) numbers, as a
+    MalformedInput (called when np.loadtxt failed, to say where)."""
+    with open(path, encoding="utf-8", errors="replace") as f:
+        f.readline()
+        for number, line in enumerate(f, start=2):
+            fields = line.rstrip("\n").split(",")
+            if len(fields) != len(names):
+                return MalformedInput(f"{path}, line {number}: {len(fields)} values, the header "
+                                      f"has {len(names)} columns")
+            for name, field in zip(names, fields):
+                try:
+                    float(field)
+                except ValueError:
+                    return MalformedInput(f"{path}, line {number}: column {name} = {field!r} "
+                                          f"is not a number")
+    return MalformedInput(f"{path}: not a table of numbers")
 
 
 def _title(summary, what):
@@ -40,12 +66,27 @@ def _title(summary, what):
 def load(directory):
     """(data, summary): trajectory.csv as a dict column name -> array and summary.json as a
     dict. (np.loadtxt, not genfromtxt: a chain of 10^5 masses has 2·10^5 + 4 columns.)"""
-    with open(os.path.join(directory, "summary.json"), encoding="utf-8") as f:
-        summary = json.load(f)
+    summary_path = os.path.join(directory, "summary.json")
+    with open(summary_path, encoding="utf-8", errors="replace") as f:
+        try:
+            summary = json.load(f)
+        except json.JSONDecodeError as e:
+            raise MalformedInput(f"{summary_path}, line {e.lineno}: {e.msg}") from None
+    if not isinstance(summary, dict):
+        raise MalformedInput(f"{summary_path}, line 1: not a JSON object")
     path = os.path.join(directory, "trajectory.csv")
-    with open(path, encoding="utf-8") as f:
+    with open(path, encoding="utf-8", errors="replace") as f:
         names = f.readline().strip().split(",")
-    values = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    missing = [c for c in COLUMNS + ("x1", "v1") if c not in names]
+    if missing:
+        raise MalformedInput(f"{path}, line 1: the header lacks the column(s) "
+                             f"{', '.join(missing)} (t,x1..xd,v1..vd,energy,dissipated,balance)")
+    try:
+        values = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    except ValueError:
+        raise _locate_bad_line(path, names) from None
+    if values.size and values.shape[1] != len(names):
+        raise _locate_bad_line(path, names)
     if values.size == 0:
         values = np.empty((0, len(names)))
     return {n: values[:, k] for k, n in enumerate(names)}, summary
@@ -226,5 +267,9 @@ def plot_run(directory):
 if __name__ == "__main__":
     if len(sys.argv) != 2:
         sys.exit("usage: plot.py RUN_DIRECTORY")
-    for p in plot_run(sys.argv[1]):
-        print(p)
+    try:
+        for p in plot_run(sys.argv[1]):
+            print(p)
+    except MalformedInput as e:
+        print(e, file=sys.stderr)
+        sys.exit(MALFORMED_EXIT)

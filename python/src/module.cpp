@@ -24,9 +24,11 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -203,7 +205,47 @@ py::object chain_dict(const ProblemSpec& s) {
 struct Run {
   ProblemSpec spec;
   Solution solution;
+  /// The exception a Python signal handler raised during the run (KeyboardInterrupt for Ctrl-C),
+  /// or None: fracvi.integrate raises it with the partial solution attached.
+  py::object interrupt = py::none();
 };
+
+/// IntegratorOptions::interrupt for a run with the GIL released. Python's SIGINT handler only
+/// records the signal; the handlers themselves (which raise KeyboardInterrupt) run when the
+/// interpreter gets to them, which it does not during a C++ loop. So the run takes the GIL about
+/// every kInterval of wall time (the clock is read every kStride calls) and runs them
+/// (PyErr_CheckSignals); when one raises, its exception is kept in `run` and the run stops. Once it
+/// has fired it keeps answering true (options.hpp).
+std::function<bool()> python_interrupt(Run& run) {
+  struct State {
+    Run* run;
+    std::chrono::steady_clock::time_point next;
+    unsigned calls = 0;
+    bool raised = false;
+  };
+  constexpr auto kInterval = std::chrono::milliseconds(100);
+  constexpr unsigned kStride = 16;
+  auto state = std::make_shared<State>(State{&run, std::chrono::steady_clock::now() + kInterval});
+  return [state, kInterval]() {
+    if (state->raised) return true;
+    if (++state->calls % kStride != 0) return false;
+    const auto now = std::chrono::steady_clock::now();
+    if (now < state->next) return false;
+    state->next = now + kInterval;
+    const py::gil_scoped_acquire gil;
+    if (PyErr_CheckSignals() == 0) return false;
+    PyObject *type = nullptr, *value = nullptr, *traceback = nullptr;
+    PyErr_Fetch(&type, &value, &traceback);
+    PyErr_NormalizeException(&type, &value, &traceback);
+    if (traceback != nullptr && value != nullptr) PyException_SetTraceback(value, traceback);
+    Py_XDECREF(type);
+    Py_XDECREF(traceback);
+    state->run->interrupt =
+        value != nullptr ? py::reinterpret_steal<py::object>(value) : py::none();
+    state->raised = true;
+    return true;
+  };
+}
 
 void make_read_only(py::array& a) {
   py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
@@ -257,9 +299,17 @@ std::unique_ptr<Run> run_problem(const ProblemSpec& spec, bool mirror, bool diag
   } catch (const ValidationError& e) {
     throw py::value_error(e.what());
   }
+  if (prepared.spec.checkpoint_every > 0) {
+    throw ProblemError(spec.source + ": output.checkpoint_every = " +
+                       std::to_string(prepared.spec.checkpoint_every) +
+                       ": checkpoints are written by `fracvi run` into its output directory; "
+                       "fracvi.integrate writes none (set it to 0)");
+  }
   auto run = std::make_unique<Run>();
   run->spec = spec;
-  // The potential and forcing are compiled formulas: no Python runs during the integration.
+  options.interrupt = python_interrupt(*run);
+  // The potential and forcing are compiled formulas: no Python runs during the integration
+  // (except the signal handlers, python_interrupt).
   py::gil_scoped_release release;
   if (options.tolerance > 0.0) {
     // method.tolerance: N doubled from time.steps until the error estimate meets it.
@@ -284,7 +334,7 @@ struct BvpRun {
 /// `fracvi bvp` from Python: prepare_bvp (the CLI's checks and messages: no [boundary], a scheme
 /// without a boundary value form, …) and the CLI's --sum, --solver and --tolerance.
 std::unique_ptr<BvpRun> run_bvp(const ProblemSpec& spec, const std::string& sum,
-                                const std::string& solver, double tolerance) {
+                                const std::string& solver, std::optional<double> tolerance) {
   PreparedBvp prepared;
   try {
     prepared = prepare_bvp(spec);
@@ -307,11 +357,16 @@ std::unique_ptr<BvpRun> run_bvp(const ProblemSpec& spec, const std::string& sum,
   } else {
     throw py::value_error("solver = '" + solver + "' must be 'auto', 'dense' or 'krylov'");
   }
-  if (!(tolerance > 0.0) || !std::isfinite(tolerance)) {
-    throw py::value_error("tolerance = " + repr_text(py::float_(tolerance)) +
-                          " must be a positive number");
+  // None: the default, which rises to the round-off floor (BvpOptions::above_round_off); a
+  // tolerance given is taken as given.
+  if (tolerance) {
+    if (!(*tolerance > 0.0) || !std::isfinite(*tolerance)) {
+      throw py::value_error("tolerance = " + repr_text(py::float_(*tolerance)) +
+                            " must be a positive number");
+    }
+    prepared.options.residual_tolerance = *tolerance;
+    prepared.options.above_round_off = false;
   }
-  prepared.options.residual_tolerance = tolerance;
   auto run = std::make_unique<BvpRun>();
   run->spec = spec;
   // The Lagrangian is a compiled formula: no Python runs during Newton's iterations.
@@ -586,6 +641,9 @@ void bind(py::module_& m) {
 
   // --- solutions ---------------------------------------------------------------------------
   py::class_<Run>(m, "Run", "A Solution and the problem it solves (C++ fracvi::Solution).")
+      .def_readonly("interrupt", &Run::interrupt,
+                    "the exception a signal handler raised during the run (KeyboardInterrupt), "
+                    "or None")
       .def_property_readonly("t",
                              [](py::object self) {
                                const auto& s = self.cast<const Run&>().solution;
@@ -860,7 +918,6 @@ void bind(py::module_& m) {
 
   m.def("solve_bvp", &run_bvp, py::arg("spec"), py::arg("sum"), py::arg("solver"),
         py::arg("tolerance"));
-  m.attr("default_bvp_tolerance") = BvpOptions{}.residual_tolerance;
 
   // --- weights -----------------------------------------------------------------------------
   m.def(

@@ -276,3 +276,47 @@ def test_memory_is_estimated_before_allocating():
     assert "more than this machine's memory" in message and "[output] every = n" in message
     with pytest.raises(fracvi.ProblemError, match="model.dim = 1000000000000: the first and last"):
         fracvi.Problem.from_toml(PROBLEM).with_overrides("model.dim=1000000000000")
+
+
+def test_ctrl_c_raises_keyboard_interrupt_with_the_partial_solution():
+    # Issue 14: Ctrl-C used to have no effect until the C++ loop ended (53 s), and the result was
+    # then discarded. 2·10^7 steps would take about a minute; SIGINT arrives after 0.5 s (from a
+    # timer thread, as a terminal's Ctrl-C would), the run stops within about 0.1 s of it.
+    import signal
+    import threading
+    import time
+    long_run = FRACTIONAL.replace("end = 4.0\nsteps = 400", "end = 2000.0\nsteps = 20000000")
+    assert long_run != FRACTIONAL
+    problem = fracvi.Problem.from_toml(long_run)
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    start = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt) as raised:
+            fracvi.integrate(problem, every=1000, history="fast", error_estimate="none",
+                             mirror=False)
+    finally:
+        timer.cancel()
+    elapsed = time.monotonic() - start
+    assert elapsed < 20.0, elapsed
+    solution = raised.value.solution
+    assert solution.status == "interrupted"
+    assert "interrupted after step" in solution.message
+    assert 0 < solution.steps < 20_000_000
+    # Rows 0, 1000, … and the last completed step, all computed.
+    assert solution.step[-1] == solution.steps
+    assert len(solution.t) == solution.steps // 1000 + 1 + (1 if solution.steps % 1000 else 0)
+    assert np.all(np.isfinite(solution.x))
+    # The partial solution is a Solution like any other (summary, write).
+    assert solution.summary()["status"] == "interrupted"
+
+
+def test_checkpoint_every_is_fracvi_runs():
+    problem = fracvi.Problem.from_toml(FRACTIONAL + "[output]\ncheckpoint_every = 100\n")
+    with pytest.raises(fracvi.ProblemError,
+                       match=r"output.checkpoint_every = 100: checkpoints are written by "
+                             r"`fracvi run` into its output directory; fracvi.integrate writes "
+                             r"none \(set it to 0\)"):
+        fracvi.integrate(problem)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'checkpoint_every'"):
+        fracvi.integrate(fracvi.Problem.from_toml(FRACTIONAL), checkpoint_every=100)

@@ -51,3 +51,36 @@ def test_plot_script_still_works_for_the_cli(cli, tmp_path):
     r = cli("run", "--set", "time.end=6", "--set", "time.steps=600", "--out", out, "--quiet")
     assert r.returncode == 0, r.stderr
     check_pngs(str(out))
+
+
+def test_plot_names_a_malformed_csv_not_matplotlib(cli, tmp_path):
+    # Issue 14 item 8: `fracvi plot` blamed matplotlib for a corrupt trajectory.csv.
+    out = tmp_path / "run"
+    r = cli("run", "--set", "time.end=6", "--set", "time.steps=60", "--out", out, "--quiet",
+            "--no-plot")
+    assert r.returncode == 0, r.stderr
+    csv_path = out / "trajectory.csv"
+    good = csv_path.read_text(encoding="utf-8")
+    lines = good.splitlines(keepends=True)
+    cases = [
+        (lines[:5] + ["0.1,0.2\n"] + lines[6:], "line 6: 2 values, the header has 6 columns"),
+        (lines[:3] + [",".join(["0.2", "abc"] + lines[3].split(",")[2:])] + lines[4:],
+         "line 4: column x1 = 'abc' is not a number"),
+        (["t,x1\n"] + lines[1:], "line 1: the header lacks the column(s) energy, dissipated, "
+                                 "balance, v1"),
+    ]
+    for text, needle in cases:
+        csv_path.write_text("".join(text), encoding="utf-8")
+        r = cli("plot", out)
+        assert r.returncode == 1
+        assert r.stdout == ""
+        assert r.stderr.count("\n") == 1, r.stderr
+        assert f"fracvi plot: not drawn: malformed input: {csv_path}, " in r.stderr, r.stderr
+        assert needle in r.stderr, r.stderr
+        assert "matplotlib" not in r.stderr
+        assert not (out / "plot.log").exists()
+    csv_path.write_text(good, encoding="utf-8")
+    (out / "summary.json").write_text('{"status": "success",\n  oops}\n', encoding="utf-8")
+    r = cli("plot", out)
+    assert r.returncode == 1
+    assert f"malformed input: {out / 'summary.json'}, line 2: " in r.stderr, r.stderr

@@ -198,6 +198,13 @@ Solution integrate_to_tolerance(const InitialValueProblem& problem, const Method
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const double estimate = solution.error_estimate.value;
+    // Interrupted during the companion runs: the trajectory is complete but the tolerance was
+    // not verified (the interrupt hook keeps answering true once it has, options.hpp).
+    if (solution.ok() && !std::isfinite(estimate) && o.interrupt && o.interrupt()) {
+      solution.status = Status::kInterrupted;
+      solution.message = "interrupted during the error estimate of the run with " +
+                         std::to_string(p.steps) + " steps (method.tolerance not verified)";
+    }
     history.push_back({p.steps, estimate, seconds, std::string(to_string(solution.status))});
     solution.tolerance_runs = history;
     if (!solution.ok() || estimate <= options.tolerance) return solution;

@@ -35,6 +35,7 @@ std::string_view to_string(Status status) {
     case Status::kCallbackError: return "callback-error";
     case Status::kUnstable: return "unstable";
     case Status::kInaccurate: return "inaccurate";
+    case Status::kInterrupted: return "interrupted";
   }
   return "unknown";
 }

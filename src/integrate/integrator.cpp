@@ -351,8 +351,96 @@ struct Integrator::Impl {
     }
   }
 
+  // options.interrupt asked to stop before step k + 1: the run ends at step k, which becomes the
+  // last row (as for a failure).
+  Status interrupt() noexcept {
+    status = Status::kInterrupted;
+    stop_clock();
+    if (!stored(k)) store();
+    std::snprintf(message.data(), message.size(),
+                  "interrupted after step %zu of %zu (t = %.17g); the trajectory up to there is "
+                  "kept",
+                  k, n_steps, time(k));
+    return status;
+  }
+
+  [[nodiscard]] bool interrupt_requested() const noexcept {
+    if (!options.interrupt) return false;
+    try {
+      return options.interrupt();
+    } catch (...) {
+      return true;  // a hook that cannot answer is taken as a request to stop
+    }
+  }
+
+  // The whole running state (Integrator::visit_state). The rows before `saved` are the steps
+  // 0, s, 2s, … ≤ k of a running integration (failure and last-step rows end a run), so their
+  // step indices are implied and only their values are stored.
+  void visit_state(StateArchive& archive) {
+    if (status != Status::kRunning) {
+      throw CheckpointError(std::string("a checkpoint needs a running integration; this one is ") +
+                            std::string(to_string(status)));
+    }
+    if (!method.info().checkpoints) {
+      throw CheckpointError("method.scheme = \"" + std::string(method.name()) +
+                            "\" cannot save its state (no checkpoints)");
+    }
+    // The scheme in the record's name: steppers shared by schemes (fvi-gl, fvi-bdf2) have the
+    // same records, and the state of one must not continue the other.
+    std::size_t scheme_record = 1;
+    archive.count("integrator.scheme=" + std::string(method.name()), scheme_record);
+    archive.expect("integrator.dimension", static_cast<std::size_t>(d));
+    archive.expect("integrator.steps", n_steps);
+    archive.expect("integrator.save_every", options.save_every);
+    archive.count("integrator.k", k);
+    archive.count("integrator.saved", saved);
+    const std::size_t rows = sol.step.size();
+    if (k >= n_steps || saved != k / options.save_every + 1 || saved > rows) {
+      throw CheckpointError("checkpoint records 'integrator.k' = " + std::to_string(k) +
+                            " and 'integrator.saved' = " + std::to_string(saved) +
+                            " do not describe a running integration of " + std::to_string(n_steps) +
+                            " steps (corrupt)");
+    }
+    for (std::size_t i = 0; i < saved; ++i) sol.step[i] = i * options.save_every;
+    const auto values = [&](std::string_view name, double* data, Eigen::Index width) {
+      archive.doubles(name, std::span<double>(data, saved * static_cast<std::size_t>(width)));
+    };
+    values("rows.t", sol.t.data(), 1);
+    values("rows.x", sol.x.data(), d);  // row-major: the first rows are contiguous
+    values("rows.v", sol.v.data(), d);
+    values("rows.energy", sol.energy.data(), 1);
+    values("rows.dissipated", sol.dissipated.data(), 1);
+    values("rows.balance", sol.balance.data(), 1);
+    sol.steps_done = k;
+    archive.count("stats.newton_iterations", sol.newton_iterations);
+    archive.count("stats.max_newton_iterations_per_step", sol.max_newton_iterations_per_step);
+    archive.number("stats.max_balance_error", sol.max_balance_error);
+    archive.number("stats.run_seconds", run_seconds);
+    for (auto [name, value] : {std::pair<const char*, double*>{"health.e0", &e0},
+                               {"health.energy", &energy_k},
+                               {"health.work", &work_k},
+                               {"health.balance", &balance_k},
+                               {"health.kinetic", &kinetic_k},
+                               {"health.potential", &potential_k},
+                               {"health.max_supplied", &max_supplied},
+                               {"health.max_activity", &max_activity},
+                               {"health.energy_scale", &energy_scale},
+                               {"health.running_max", &running_max},
+                               {"health.checkpoint_max", &checkpoint_max},
+                               {"health.growth_reference", &growth_reference},
+                               {"health.max_abs_work", &max_abs_work},
+                               {"health.tolerance_scale", &tolerance_scale},
+                               {"health.max_abs_balance", &max_abs_balance}}) {
+      archive.number(name, *value);
+    }
+    archive.count("health.next_checkpoint", next_checkpoint);
+    archive.count("health.max_balance_step", max_balance_step);
+    stepper->visit_state(archive);
+  }
+
   Status step() noexcept {
     if (status != Status::kRunning) return status;
+    if (interrupt_requested()) return interrupt();
     if (!clock_running) {
       clock_start = std::chrono::steady_clock::now();
       clock_running = true;
@@ -462,6 +550,10 @@ const IntegratorOptions& Integrator::options() const {
 }
 const Solution& Integrator::solution() const {
   return impl_->sol;
+}
+
+void Integrator::visit_state(StateArchive& archive) {
+  impl_->visit_state(archive);
 }
 
 double Integrator::mirror_error() const {

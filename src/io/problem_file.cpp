@@ -694,6 +694,19 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     p.every = r.integer(*n, "output.every");
     if (p.every < 1) r.fail("output.every", "= " + std::to_string(p.every) + " must be at least 1");
   }
+  if (const auto* n = r.find("output", "checkpoint_every")) {
+    p.checkpoint_every = r.integer(*n, "output.checkpoint_every");
+    if (p.checkpoint_every < 0) {
+      r.fail("output.checkpoint_every", "= " + std::to_string(p.checkpoint_every) +
+                                            " must be >= 0 (steps between checkpoints; 0: none)");
+    }
+    if (p.checkpoint_every > 0 && p.tolerance > 0.0) {
+      r.fail("output.checkpoint_every",
+             "= " + std::to_string(p.checkpoint_every) +
+                 " cannot be combined with method.tolerance (that runs several step counts; "
+                 "checkpoint one run with a fixed time.steps)");
+    }
+  }
   // [reference]
   if (const auto* n = r.find("reference", "position")) {
     if (!n->is_array()) r.fail("reference.position", "must be an array of d formulas in t");

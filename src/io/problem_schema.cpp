@@ -208,6 +208,10 @@ std::vector<ProblemField> make_schema() {
       {"output", "every", "integer", std::to_string(d.every), "store every n-th state",
        FRACVI_BINDING(IntegratorOptions, save_every),
        [](P p) { return Json(static_cast<std::int64_t>(p.every)); }},
+      {"output", "checkpoint_every", "integer", std::to_string(d.checkpoint_every),
+       "fracvi run: write a checkpoint every n steps (0: none)",
+       FRACVI_BINDING(ProblemSpec, checkpoint_every),
+       [](P p) { return Json(static_cast<std::int64_t>(p.checkpoint_every)); }},
       {"reference", "position", "array of d strings", "—", "exact x(t), one formula per component",
        FRACVI_BINDING(ProblemSpec, reference), [](P p) { return strings_json(p.reference); }},
   };

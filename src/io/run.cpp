@@ -33,13 +33,26 @@ PreparedRun prepare_run(ProblemSpec spec) {
     validate(run.problem);
     validate(run.options);
     const bool automatic = spec.scheme == kAutoScheme;
-    const auto method = automatic ? std::optional<Method>(choose_scheme(run.problem, run.options))
-                                  : parse_method(spec.scheme);
+    // "auto" with checkpoints takes a scheme that can write them.
+    const auto can_checkpoint = [&spec](const SchemeInfo& info) {
+      return spec.checkpoint_every == 0 || info.checkpoints;
+    };
+    const auto method =
+        automatic ? std::optional<Method>(choose_scheme(run.problem, run.options, can_checkpoint))
+                  : parse_method(spec.scheme);
     if (!method) {  // the reader accepts only registered names; a spec built in code may not
       throw ProblemFileError(source + ": method.scheme = \"" + spec.scheme +
                              "\" is not a known scheme (available: " + scheme_names() + ")");
     }
     run.method = *method;
+    if (spec.checkpoint_every > 0 && !run.method.info().checkpoints) {
+      throw ProblemFileError(
+          source + ": output.checkpoint_every = " + std::to_string(spec.checkpoint_every) +
+          " is not available for method.scheme = \"" + std::string(run.method.name()) + "\"" +
+          (automatic ? " (chosen by \"auto\")" : "") +
+          ": its stepper cannot save its state yet (schemes with checkpoints: " +
+          scheme_names_with(&SchemeInfo::checkpoints) + "); set it to 0");
+    }
     check_applicable(run.problem, run.method, run.options);
     check_storage(run.problem, run.options);
     run.spec = std::move(spec);

@@ -371,7 +371,6 @@ class BvpSolver {
     const auto start = std::chrono::steady_clock::now();
     BvpSolution sol;
     sol.sum = std::string(to_string(p_.sum));
-    sol.residual_tolerance = o_.residual_tolerance;
     initial_guess();
     const Eigen::Index unknowns = 2 * (n_ - 1) * d_;
     const bool dense = o_.linear_solver == BvpLinearSolver::kDense ||
@@ -393,6 +392,7 @@ class BvpSolver {
     }
     sol.residual_norm = norm;
     sol.residual_floor = floor_;
+    sol.residual_tolerance = tolerance();
     sol.t.resize(n_ + 1);
     for (Eigen::Index k = 0; k <= n_; ++k) sol.t(k) = p_.grid.time(static_cast<double>(k));
     sol.x = x_.transpose();
@@ -448,6 +448,12 @@ class BvpSolver {
   // The positions carry rounding ε|u|, which the equations amplify by ‖J‖_∞ (the 1/h² of the
   // second differences dominates): 2ε‖J‖_∞‖u‖_∞ is the floor below which no iterate can push
   // max |F|.
+  // The tolerance in force: residual_tolerance, raised to the round-off floor of the last
+  // Jacobian when above_round_off (BvpOptions).
+  [[nodiscard]] double tolerance() const {
+    return o_.above_round_off ? std::max(o_.residual_tolerance, floor_) : o_.residual_tolerance;
+  }
+
   void update_floor(double jacobian_norm) {
     const double u = std::max(x_.cwiseAbs().maxCoeff(), y_.cwiseAbs().maxCoeff());
     floor_ = 2 * std::numeric_limits<double>::epsilon() * jacobian_norm * u;
@@ -476,7 +482,7 @@ class BvpSolver {
       return;
     }
     for (int it = 1; it <= o_.max_iterations; ++it) {
-      if (norm <= o_.residual_tolerance) {
+      if (norm <= tolerance()) {
         sol.status = Status::kSuccess;
         sol.newton_iterations = it - 1;
         return;
@@ -518,17 +524,18 @@ class BvpSolver {
           // all Newton needs near the solution (asking for krylov_tolerance·‖F‖ there would go
           // below the round-off of J·v). A solve that stops short but reduced ‖r‖ is still a
           // descent direction; the line search decides.
-          const auto [iterations, rnorm] =
-              gmres([&](const Eigen::VectorXd& v) { return jac.apply(v); },
-                    [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return lu.solve(v); }, rhs,
-                    delta, o_.krylov_tolerance, 0.1 * o_.residual_tolerance, o_.krylov_restart,
-                    o_.krylov_max_iterations);
+          const auto [iterations, rnorm] = gmres(
+              [&](const Eigen::VectorXd& v) { return jac.apply(v); },
+              [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return lu.solve(v); }, rhs, delta,
+              o_.krylov_tolerance, 0.1 * tolerance(), o_.krylov_restart, o_.krylov_max_iterations);
           sol.linear_iterations += static_cast<std::size_t>(iterations);
           if (!(rnorm <= 0.5 * rhs.norm())) {
             fail_with(Status::kNewtonFailure,
                       "GMRES did not reduce the linear residual (" + fmt(rnorm) + " vs " +
                           fmt(rhs.norm()) + " after " + std::to_string(iterations) +
-                          " iterations; raise preconditioner_width or use the dense solver)",
+                          " iterations; use --solver dense, or solver=\"dense\" in Python, for up "
+                          "to a few thousand "
+                          "unknowns)",
                       it);
             return;
           }
@@ -582,28 +589,29 @@ class BvpSolver {
         best_x_ = x_;
         best_y_ = y_;
       }
-      if (norm > o_.residual_tolerance && stalled_ >= 3) {
+      if (norm > tolerance() && stalled_ >= 3) {
         fail_with(Status::kNewtonFailure,
                   "Newton stagnated at max |F| = " + fmt(best_norm_) + " > residual_tolerance " +
-                      fmt(o_.residual_tolerance) +
+                      fmt(tolerance()) +
                       " (three iterations without halving it); the round-off floor of these "
                       "equations is about " +
                       fmt(floor_) +
                       (floor_ > 0.1 * o_.residual_tolerance
-                           ? ": the tolerance is too tight for this step size"
+                           ? ": the tolerance is too tight for this step size (without an "
+                             "explicit tolerance the solver converges at the floor)"
                            : ""),
                   it);
         return;
       }
     }
-    if (norm <= o_.residual_tolerance) {
+    if (norm <= tolerance()) {
       sol.status = Status::kSuccess;
       return;
     }
     fail_with(Status::kNewtonFailure,
               "no convergence in " + std::to_string(o_.max_iterations) +
                   " iterations: max |F| = " + fmt(best_norm_) + " > residual_tolerance " +
-                  fmt(o_.residual_tolerance) + "; the best iterate is returned",
+                  fmt(tolerance()) + "; the best iterate is returned",
               o_.max_iterations);
   }
 

@@ -136,6 +136,21 @@ void FastHistory::set_threads(int threads) {
       internal::team_size(threads_, d * (state_.cols() + window_), kParallelWork));
 }
 
+void FastHistory::visit_state(StateArchive& archive) {
+  // The fit (λ_j, w_j, the window's exact weights) is rebuilt by the constructor from the same
+  // options; its sizes are checked so that a checkpoint of another fit is refused.
+  archive.expect("fast.dimension", static_cast<std::size_t>(ring_.rows()));
+  archive.expect("fast.capacity", capacity_);
+  archive.expect("fast.window", static_cast<std::size_t>(window_));
+  archive.expect("fast.terms", static_cast<std::size_t>(state_.cols()));
+  archive.count("fast.size", size_);
+  if (size_ > capacity_) throw CheckpointError("checkpoint record 'fast.size' exceeds capacity");
+  archive.dense("fast.ring", ring_);
+  archive.dense("fast.recursions", state_);
+  archive.dense("fast.tail", tail_);
+  archive.dense("fast.sum", sum_);
+}
+
 void FastHistory::clear() {
   ring_.setZero();
   state_.setZero();

@@ -49,6 +49,16 @@ void DirectHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
       out);
 }
 
+void DirectHistory::visit_state(StateArchive& archive) {
+  archive.expect("direct.dimension", static_cast<std::size_t>(dimension_));
+  archive.expect("direct.capacity", capacity());
+  archive.count("direct.size", size_);
+  if (size_ > capacity()) throw CheckpointError("checkpoint record 'direct.size' exceeds capacity");
+  // Only the pushed values: the rest of the buffer is never read before it is pushed again.
+  archive.doubles("direct.values",
+                  std::span<double>(values_.data(), size_ * static_cast<std::size_t>(dimension_)));
+}
+
 LocalHistory::LocalHistory(ConvolutionQuadrature quadrature, Eigen::Index dimension)
     : quadrature_(quadrature) {
   if (!quadrature.is_local()) {
@@ -90,6 +100,13 @@ void LocalHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
   accumulate_causal(
       weights_, k, [&](std::size_t j) { return window_.col(static_cast<Eigen::Index>(j % w)); },
       out, first);
+}
+
+void LocalHistory::visit_state(StateArchive& archive) {
+  archive.expect("local.dimension", static_cast<std::size_t>(window_.rows()));
+  archive.expect("local.width", static_cast<std::size_t>(width_));
+  archive.count("local.size", size_);
+  archive.dense("local.window", window_);
 }
 
 std::optional<HistoryKind> parse_history_kind(std::string_view name) {

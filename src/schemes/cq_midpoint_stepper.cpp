@@ -228,6 +228,24 @@ Status CqMidpointStepper::advance() {
   return Status::kSuccess;
 }
 
+void CqMidpointStepper::visit_state(StateArchive& archive) {
+  visit_step_index(archive, d_, n_steps_, k_);
+  archive.dense("cq_midpoint.x", x_cur_);
+  archive.dense("cq_midpoint.v", v_cur_);
+  archive.dense("cq_midpoint.p", p_);
+  archive.dense("cq_midpoint.force", force_);  // F_k
+  archive.dense("cq_midpoint.w", w_);          // M⁻¹F_k (energy account)
+  // Newton's predictor is the previous increment Δ_{k−1}: it changes the iterates, hence the
+  // last bits of a nonlinear step.
+  archive.dense("cq_midpoint.increment", dx_);
+  archive.dense("cq_midpoint.x1", x_first_);  // the mirror run starts from x_0, x_1
+  archive.number("cq_midpoint.fv", fv_);
+  archive.number("cq_midpoint.fw", fw_);
+  archive.number("cq_midpoint.work", work_);
+  archive.number("cq_midpoint.supplied", supplied_);
+  archive.optional("cq_midpoint.history", history_.get());
+}
+
 // The y-equation (mirror_run.hpp) with D_k = R h^{−2α} Σ_{m=0}^{N−k} ω_m ỹ_{k+m}, all of it known
 // (explicit memory): a forward-running history fed with ỹ_N, ỹ_{N−1}, …, ỹ_j = y_j − y_N −
 // (t_N − t_j) v_0 (the shift of the reversed clock); kTaylorSplit adds P's force of the mirrored

@@ -61,6 +61,7 @@ class CqMidpointStepper final : public Stepper {
   [[nodiscard]] std::string_view history_kind() const override {
     return history_ ? history_->kind() : "none";
   }
+  void visit_state(StateArchive& archive) override;
 
  private:
   Status advance() override;

@@ -21,6 +21,7 @@ const SchemeInfo kFviGl{
     .fast_history = true,
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
     .forcing_moments = true,  // method.load = "moments": the cell average of f
+    .checkpoints = true,
     .applies_to = "every model",
     .stability_rule = "lambda_max(M^-1 R) (h/2)^(2-2alpha) < 1",
     // The GL sum (for α = 1/2 the backward difference of Lemma 5.3) is first order; without

@@ -107,6 +107,21 @@ class TrapezoidalMidpointStepper final : public Stepper {
   [[nodiscard]] double mirror_error(const RowMatrixXd& x,
                                     std::span<const std::size_t> steps) const override;
 
+  void visit_state(StateArchive& archive) override {
+    visit_step_index(archive, d_, n_steps_, k_);
+    archive.dense("fvi_midpoint.x", x_cur_);
+    archive.dense("fvi_midpoint.v", v_cur_);
+    archive.dense("fvi_midpoint.p", p_);
+    archive.dense("fvi_midpoint.q", q_);                      // q_k of the node equation
+    archive.dense("fvi_midpoint.g_tilde", g_tilde_);          // G̃_{k−1}
+    archive.dense("fvi_midpoint.g_poly_prev", g_poly_prev_);  // G^P_{k−1}
+    archive.dense("fvi_midpoint.increment", dx_);             // Newton's predictor Δ_{k−1}
+    archive.dense("fvi_midpoint.x1", x_first_);               // the mirror run starts from x_0, x_1
+    archive.number("fvi_midpoint.work", work_);
+    archive.number("fvi_midpoint.supplied", supplied_);
+    archive.optional("fvi_midpoint.memory", memory_.get());
+  }
+
  private:
   Status advance() override;
 
@@ -303,6 +318,7 @@ const SchemeInfo kFviMidpoint{
     .fast_history = true,  // both memory sums are GL sums (orders 2α and 1 − 2α, lag 1)
     .momentum_quadrature = CqScheme::kTrapezoidal,
     .forcing_moments = true,  // method.load = "moments": the cell average of f
+    .checkpoints = true,
     .applies_to = "0 <= 2alpha < 2",
     .stability_rule =
         "stable for every h (implicit damping; the Tustin image of the continuous "

@@ -86,6 +86,16 @@ std::optional<Method> parse_method(std::string_view name) {
   return std::nullopt;
 }
 
+std::string scheme_names_with(bool SchemeInfo::*property) {
+  std::string names;
+  for (const SchemeInfo* info : kSchemes) {
+    if (!(info->*property)) continue;
+    if (!names.empty()) names += ", ";
+    names += info->name;
+  }
+  return names;
+}
+
 std::string boundary_value_scheme_names() {
   std::string names;
   for (const SchemeInfo* info : kSchemes) {
@@ -117,12 +127,7 @@ void check_applicable(const InitialValueProblem& problem, const Method& method,
                           "(the direct sum for this scheme) or \"direct\"");
   }
   if (options.load == ForcingLoad::kMoments && !info.forcing_moments) {
-    std::string with;
-    for (const SchemeInfo* other : kSchemes) {
-      if (!other->forcing_moments) continue;
-      if (!with.empty()) with += ", ";
-      with += other->name;
-    }
+    const std::string with = scheme_names_with(&SchemeInfo::forcing_moments);
     throw ValidationError("method.load = \"moments\" is not available for method.scheme = \"" +
                           std::string(info.name) + "\" (schemes with it: " + with +
                           "); use \"pointwise\"");
@@ -148,10 +153,13 @@ std::string_view auto_scheme_rule() {
          "and is stable at its step (docs/comparison.md)";
 }
 
-Method choose_scheme(const InitialValueProblem& problem, const IntegratorOptions& options) {
+Method choose_scheme(const InitialValueProblem& problem, const IntegratorOptions& options,
+                     const std::function<bool(const SchemeInfo&)>& admissible) {
   const SchemeInfo* const candidates[] = {&internal::kFviLobatto3, &internal::kFviMidpoint,
                                           &internal::kFviBdf2, &internal::kFviGl};
   for (std::size_t i = 0; i < std::size(candidates); ++i) {
+    // fvi-gl, the last resort, is tried whatever `admissible` says: its refusal names the rule.
+    if (admissible && i + 1 < std::size(candidates) && !admissible(*candidates[i])) continue;
     const Method method(*candidates[i]);
     try {
       check_applicable(problem, method, options);

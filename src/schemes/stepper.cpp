@@ -24,6 +24,18 @@ Status Stepper::step() noexcept {
   return fail(Status::kCallbackError, "the potential or the forcing threw");
 }
 
+void Stepper::visit_state(StateArchive&) {
+  throw CheckpointError("this scheme's stepper cannot save its state (no checkpoints)");
+}
+
+void Stepper::visit_step_index(StateArchive& archive, Eigen::Index dimension, std::size_t steps,
+                               std::size_t& k) {
+  archive.expect("stepper.dimension", static_cast<std::size_t>(dimension));
+  archive.expect("stepper.steps", steps);
+  archive.count("stepper.k", k);
+  if (k > steps) throw CheckpointError("checkpoint record 'stepper.k' exceeds stepper.steps");
+}
+
 Status Stepper::fail(Status status, const char* format, ...) noexcept {
   va_list args;
   va_start(args, format);

@@ -76,6 +76,13 @@ class NodeAveragedTrapezoid {
   [[nodiscard]] std::string_view kind() const {
     return difference_ ? difference_->kind() : (average_ ? average_->kind() : "none");
   }
+  /// Saves or restores both histories and the carried sums (core/state_archive.hpp).
+  void visit_state(StateArchive& archive) {
+    archive.optional("trapezoid.difference", difference_.get());
+    archive.optional("trapezoid.average", average_.get());
+    archive.dense("trapezoid.s1", s1_);
+    archive.dense("trapezoid.part", part_);
+  }
   [[nodiscard]] std::size_t memory_bytes() const {
     return (difference_ ? difference_->memory_bytes() : 0) +
            (average_ ? average_->memory_bytes() : 0);

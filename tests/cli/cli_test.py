@@ -8,6 +8,7 @@ import csv
 import json
 import math
 import os
+import signal
 import time
 import subprocess
 import sys
@@ -490,7 +491,7 @@ class Run(unittest.TestCase):
              "linear_solver, load, error_estimate, tolerance, max_steps, threads"),
             (["output.stride=2"],
              "fracvi run: <built-in problem>: --set output.stride: unknown key; valid in [output]: "
-             "every"),
+             "every, checkpoint_every"),
             (["solver.kind=lu"],
              "fracvi run: <built-in problem>: --set solver.kind: unknown section [solver]; valid "
              "sections: [model], [model.chain], [initial], [boundary], [time], [method], "
@@ -681,10 +682,13 @@ class Methods(unittest.TestCase):
         # (docs/comparison.md). Stiff U = 50 x^2 at h = 0.6: h^2 lambda = 36 is beyond
         # fvi-lobatto3's 8, so fvi-midpoint (stable for every h); 2alpha = 2: neither applies,
         # fvi-bdf2 needs lambda(R) 4 h^0 < 1 (R = 0.2 yes, R = 0.25 no: then fvi-gl, R < M).
+        # With [output] checkpoint_every only schemes that can write checkpoints are candidates.
         cases = ((("model.damping=0.3",), "fvi-lobatto3"),
                  (("model.potential=50*x1^2", "time.end=6", "time.steps=10"), "fvi-midpoint"),
                  (("model.alpha=1", "model.damping=0.2"), "fvi-bdf2"),
-                 (("model.alpha=1", "model.damping=0.25"), "fvi-gl"))
+                 (("model.alpha=1", "model.damping=0.25"), "fvi-gl"),
+                 # checkpoints: the first candidate that can write them (fvi-lobatto3 cannot yet)
+                 (("output.checkpoint_every=100",), "fvi-midpoint"))
         with tempfile.TemporaryDirectory() as tmp:
             for settings, expected in cases:
                 out = os.path.join(tmp, expected)
@@ -818,6 +822,208 @@ class Robustness(unittest.TestCase):
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertEqual(sorted(os.listdir(out)), ["problem.toml", "summary.json",
                                                    "trajectory.csv"])
+
+
+def without_wall_times(value):
+    """summary.json without the wall-clock fields (the only ones a resumed run may change)."""
+    if isinstance(value, dict):
+        return {k: without_wall_times(v) for k, v in value.items() if "wall" not in k}
+    if isinstance(value, list):
+        return [without_wall_times(v) for v in value]
+    return value
+
+
+class Interrupts(unittest.TestCase):
+    """SIGINT, SIGTERM and SIGHUP stop `fracvi run` at the next step with everything written
+    (status interrupted, exit 130); [output] checkpoint_every and --resume continue a run
+    bit-for-bit (issue 14, item 5)."""
+
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.dir = self.tmp.name
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    @staticmethod
+    def problem(steps, end, scheme="fvi-gl", history="fast", estimate="none", every=1,
+                checkpoint=0):
+        """The built-in problem (the forced fractional Duffing oscillator) with these values."""
+        values = {"time.steps": steps, "time.end": end, "method.scheme": scheme,
+                  "method.history": history, "method.error_estimate": estimate,
+                  "output.every": every, "output.checkpoint_every": checkpoint}
+        return [arg for key, value in values.items() for arg in ("--set", f"{key}={value}")]
+
+    @staticmethod
+    def wait_for(path, process, timeout=60.0):
+        """Waits until `path` exists (while the process runs)."""
+        deadline = time.monotonic() + timeout
+        while not os.path.exists(path):
+            if process.poll() is not None:
+                raise AssertionError(f"the run ended ({process.returncode}) before {path} "
+                                     f"appeared: {process.stderr.read()}")
+            if time.monotonic() > deadline:
+                process.kill()
+                raise AssertionError(f"{path} did not appear within {timeout} s")
+            time.sleep(0.002)
+
+    def interrupted(self, problem, out, sig, wait_file, *extra):
+        """Starts `fracvi run`, sends `sig` once `wait_file` (in `out`) exists; returns
+        (returncode, stdout, stderr)."""
+        process = subprocess.Popen([FRACVI, "run", *problem, "--out", out, "--no-plot", *extra],
+                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.wait_for(os.path.join(out, wait_file), process)
+        process.send_signal(sig)
+        try:
+            stdout, stderr = process.communicate(timeout=120)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            raise
+        return process.returncode, stdout, stderr
+
+    def load(self, out, name):
+        with open(os.path.join(out, name), encoding="utf-8") as f:
+            return json.load(f) if name.endswith(".json") else f.read()
+
+    def test_signals_stop_the_run_and_write_everything_so_far(self):
+        # 2·10^7 steps would take about a minute: the signal comes once the run holds its output
+        # directory (.fracvi.lock: the integrator is set up, step 1 is next) and ends it at once.
+        steps, every = 20_000_000, 1000
+        problem = self.problem(steps, 2000.0, every=every)
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            with self.subTest(signal=sig.name):
+                out = os.path.join(self.dir, "out-" + sig.name)
+                start = time.monotonic()
+                code, stdout, stderr = self.interrupted(problem, out, sig, ".fracvi.lock")
+                self.assertLess(time.monotonic() - start, 30.0)
+                self.assertEqual(code, 130, stdout + stderr)
+                self.assertIn("status            interrupted: interrupted after step", stdout)
+                summary = self.load(out, "summary.json")
+                self.assertEqual(summary["status"], "interrupted")
+                self.assertIn("interrupted after step", summary["message"])
+                done = summary["steps"]
+                self.assertLess(done, steps)
+                with open(os.path.join(out, "trajectory.csv"), encoding="utf-8") as f:
+                    rows = list(csv.reader(f))[1:]
+                # Rows 0, every, 2·every, … and the last completed step.
+                self.assertEqual(len(rows), done // every + 1 + (1 if done % every else 0))
+                self.assertEqual(float(rows[-1][0]), summary["final_time"])
+                self.assertTrue(all(math.isfinite(float(v)) for v in rows[-1]))
+                self.assertTrue(os.path.exists(os.path.join(out, "problem.toml")))
+                self.assertEqual([f for f in os.listdir(out) if ".tmp" in f], [])
+
+    def test_quiet_interrupted_run_prints_its_one_line(self):
+        problem = self.problem(20_000_000, 2000.0, every=1000)
+        out = os.path.join(self.dir, "quiet")
+        code, stdout, stderr = self.interrupted(problem, out, signal.SIGTERM, ".fracvi.lock",
+                                                "--quiet")
+        self.assertEqual(code, 130)
+        self.assertEqual(stdout, "")
+        lines = stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, stderr)
+        self.assertIn("fracvi run: fractional-duffing: interrupted: interrupted after step",
+                      lines[0])
+
+    def test_resume_continues_bit_for_bit(self):
+        # Each case: an uninterrupted run, and one stopped after its first checkpoint — by SIGINT
+        # (its own checkpoint at the step the signal arrived) or by SIGKILL (nothing but the
+        # periodic checkpoint survives) — then resumed. trajectory.csv and summary.json (but its
+        # wall times) must be identical, byte for byte.
+        cases = [
+            ("fvi-gl", "fast", 1_000_000, 100.0, 100_000, 7, "none", signal.SIGINT),
+            ("fvi-gl", "direct", 40_000, 40.0, 2_000, 1, "richardson", signal.SIGKILL),
+            ("fvi-bdf2", "fast", 1_000_000, 100.0, 100_000, 1, "none", signal.SIGINT),
+        ]
+        for scheme, history, steps, end, checkpoint, every, estimate, sig in cases:
+            with self.subTest(scheme=scheme, history=history, signal=sig.name):
+                name = f"{scheme}-{history}"
+                problem = self.problem(steps, end, scheme=scheme, history=history,
+                                       estimate=estimate, every=every, checkpoint=checkpoint)
+                reference = os.path.join(self.dir, name + "-whole")
+                r = run("run", *problem, "--out", reference, "--no-plot", "--quiet")
+                self.assertEqual(r.returncode, 0, r.stderr)
+                # A finished run removes its checkpoint (nothing to resume).
+                self.assertFalse(os.path.exists(os.path.join(reference, "checkpoint.fracvi")))
+
+                stopped = os.path.join(self.dir, name + "-stopped")
+                code, stdout, stderr = self.interrupted(problem, stopped, sig,
+                                                        "checkpoint.fracvi")
+                self.assertEqual(code, 130 if sig == signal.SIGINT else -signal.SIGKILL,
+                                 stdout + stderr)
+                if sig == signal.SIGINT:
+                    self.assertIn("resume            fracvi run --resume " + stopped, stdout)
+                    self.assertEqual(self.load(stopped, "summary.json")["status"],
+                                     "interrupted")
+                r = run("run", "--resume", stopped, "--no-plot")
+                self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+                self.assertIn("status            success", r.stdout)
+                self.assertEqual(self.load(stopped, "trajectory.csv"),
+                                 self.load(reference, "trajectory.csv"))
+                self.assertEqual(without_wall_times(self.load(stopped, "summary.json")),
+                                 without_wall_times(self.load(reference, "summary.json")))
+                self.assertFalse(os.path.exists(os.path.join(stopped, "checkpoint.fracvi")))
+
+    def refused(self, needles, *args):
+        r = run(*args)
+        self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
+        self.assertEqual(r.stdout, "")
+        lines = r.stderr.strip().splitlines()
+        self.assertEqual(len(lines), 1, r.stderr)
+        for needle in needles:
+            self.assertIn(needle, lines[0])
+
+    def test_resume_refuses_a_changed_missing_or_corrupt_checkpoint(self):
+        problem = self.problem(1_000_000, 100.0, checkpoint=100_000)
+        stopped = os.path.join(self.dir, "refuse")
+        code, _, stderr = self.interrupted(problem, stopped, signal.SIGINT, "checkpoint.fracvi")
+        self.assertEqual(code, 130, stderr)
+        checkpoint = os.path.join(stopped, "checkpoint.fracvi")
+        with open(checkpoint, "rb") as f:
+            saved = f.read()
+        toml = self.load(stopped, "problem.toml")
+
+        # The problem in the directory changed: refused, naming the line.
+        with open(os.path.join(stopped, "problem.toml"), "w", encoding="utf-8") as f:
+            f.write(toml.replace("damping = 0.25", "damping = 0.5"))
+        self.refused(["fracvi run: --resume ", "problem.toml: the problem changed since the "
+                      "checkpoint was taken", "`damping = 0.25` when the checkpoint was taken, "
+                      "`damping = 0.5` now", "resume refused"], "run", "--resume", stopped)
+        with open(os.path.join(stopped, "problem.toml"), "w", encoding="utf-8") as f:
+            f.write(toml)
+
+        # Altered, truncated, missing.
+        altered = bytearray(saved)
+        altered[-5] ^= 0x40
+        with open(checkpoint, "wb") as f:
+            f.write(bytes(altered))
+        self.refused(["checkpoint.fracvi: corrupt checkpoint: the state's checksum does not "
+                      "match"], "run", "--resume", stopped)
+        with open(checkpoint, "wb") as f:
+            f.write(saved[:len(saved) // 2])
+        self.refused(["checkpoint.fracvi: corrupt checkpoint: the state has"],
+                     "run", "--resume", stopped)
+        os.remove(checkpoint)
+        self.refused(["checkpoint.fracvi: no checkpoint"], "run", "--resume", stopped)
+        self.refused(["--resume", "not a directory"], "run", "--resume",
+                     os.path.join(self.dir, "nowhere"))
+        # A resumed run continues its own directory's problem.
+        self.refused(["give no problem file, --set or --out with --resume"],
+                     "run", *problem, "--resume", stopped)
+
+    def test_checkpoint_every_is_validated_before_step_one(self):
+        self.refused(["output.checkpoint_every = -5 must be >= 0"], "run",
+                     *self.problem(1000, 1.0, checkpoint=-5), "--out",
+                     os.path.join(self.dir, "neg"))
+        self.refused(["output.checkpoint_every = 10 is not available for method.scheme = "
+                      "\"fvi-lobatto2\"", "its stepper cannot save its state yet (schemes with "
+                      "checkpoints: fvi-gl, fvi-bdf2, fvi-midpoint); set it to 0"],
+                     "run", *self.problem(1000, 1.0, scheme="fvi-lobatto2", history="auto",
+                                          checkpoint=10),
+                     "--out", os.path.join(self.dir, "mid"))
+        self.refused(["output.checkpoint_every", "cannot be combined with method.tolerance"],
+                     "run", *self.problem(1000, 1.0, estimate="richardson", checkpoint=10),
+                     "--set", "method.tolerance=1e-3", "--out", os.path.join(self.dir, "tol"))
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "neg")))
 
 
 class Help(unittest.TestCase):

@@ -194,6 +194,7 @@ std::vector<std::string> differences(const fracvi::ProblemSpec& a, const fracvi:
   check(a.max_steps == b.max_steps, "max_steps");
   check(a.threads == b.threads, "threads");
   check(a.every == b.every, "every");
+  check(a.checkpoint_every == b.checkpoint_every, "checkpoint_every");
   check(a.reference == b.reference, "reference");
   return out;
 }
@@ -343,6 +344,7 @@ const std::vector<Case>& cases() {
       {"method.max_steps", "", [](Json& j) { j["method"]["max_steps"] = 123456; }},
       {"method.threads", "", [](Json& j) { j["method"]["threads"] = 3; }},
       {"output.every", "", [](Json& j) { j["output"]["every"] = 5; }},
+      {"output.checkpoint_every", "", [](Json& j) { j["output"]["checkpoint_every"] = 250; }},
       {"reference.position", "",
        [](Json& j) {
          j["reference"]["position"] = {"cos(t)", "0"};

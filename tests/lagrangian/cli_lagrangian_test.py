@@ -145,6 +145,50 @@ class Bvp(unittest.TestCase):
             self.assertEqual(s["action_sum"], "printed")
             self.assertIn("dense LU", s["linear_solver"])
 
+    def test_default_tolerance_rises_to_the_round_off_floor(self):
+        # Issue 14 item 6: a linear BVP at N = 5000. The equations scale like 1/h², so their
+        # round-off floor (2 eps |J| |u|, about 1e-8 here) is far above the old fixed default
+        # 1e-10, and Newton stagnated at 2.5e-9 with exit 1. The default now converges at the
+        # floor; an explicit --tolerance is taken as given and still fails, saying why.
+        with tempfile.TemporaryDirectory() as out:
+            path = os.path.join(out, "linear.toml")
+            with open(path, "w", encoding="utf-8") as f:
+                f.write('name = "linear-bvp"\n[model]\ndim = 1\nmass = 1.0\ndamping = 0.3\n'
+                        'alpha = 0.75\nconvention = "riemann-liouville"\n'
+                        'potential = "x1^2/2"\n[boundary]\nstart = [1.0]\nend = [0.5]\n'
+                        '[time]\nend = 2.0\nsteps = 5000\n')
+            r = run("bvp", path, "--out", os.path.join(out, "a"), "--quiet")
+            self.assertEqual(r.returncode, 0, r.stderr)
+            s = read_json(os.path.join(out, "a", "summary.json"))
+            self.assertEqual(s["status"], "success")
+            self.assertGreater(s["residual_floor"], 1e-9)  # the old default was unreachable
+            self.assertEqual(s["residual_tolerance"], max(1e-10, s["residual_floor"]))
+            self.assertLessEqual(s["residual_norm"], s["residual_tolerance"])
+            # The curve: y mirrors x to what the residual allows — an iterate error of at most
+            # |J^-1| max|F| <= (T^2/8 for M u'' with unit mass on [0, T = 2]) x tolerance, doubled
+            # — and N = 2500 agrees to the scheme's first order.
+            fine = read_csv(os.path.join(out, "a", "trajectory.csv"))
+            mirror_bound = 2 * (2.0 ** 2 / 8) * s["residual_tolerance"]
+            self.assertLess(max(abs(float(fine[k]["y1"]) - float(fine[5000 - k]["x1"]))
+                                for k in range(5001)), mirror_bound)
+            r = run("bvp", path, "--out", os.path.join(out, "b"), "--quiet", "--set",
+                    "time.steps=2500")
+            self.assertEqual(r.returncode, 0, r.stderr)
+            coarse = read_csv(os.path.join(out, "b", "trajectory.csv"))
+            self.assertLess(abs(float(fine[2500]["x1"]) - float(coarse[1250]["x1"])), 1e-2)
+
+            r = run("bvp", path, "--out", os.path.join(out, "c"), "--quiet",
+                    "--tolerance", "1e-10")
+            self.assertEqual(r.returncode, 1)
+            # --quiet: no summary, but the failure's one line (issue 14 item 7).
+            self.assertEqual(r.stdout, "")
+            lines = r.stderr.strip().splitlines()
+            self.assertEqual(len(lines), 1, r.stderr)
+            self.assertIn("fracvi bvp: linear-bvp: newton-failure: Newton stagnated", lines[0])
+            self.assertIn("the tolerance is too tight for this step size (without an explicit "
+                          "tolerance the solver converges at the floor)", lines[0])
+            self.assertIn("best iterate written: max |F| = ", lines[0])
+
 
 class Residual(unittest.TestCase):
     EXACT_X = "exp(-0.2*t)*sin(sqrt(3.96)*t)"

@@ -18,6 +18,10 @@ enum class Status {
   /// All steps done, but the energy balance error exceeded the documented fraction of the energy
   /// scale at some step (integrator.hpp, "Health checks"): the numbers are not to be trusted.
   kInaccurate,
+  /// Stopped on request before the last step (IntegratorOptions::interrupt: SIGINT, SIGTERM or
+  /// SIGHUP in `fracvi run`, Ctrl-C in Python); the trajectory up to the last completed step is
+  /// kept, as for a failure.
+  kInterrupted,
 };
 
 std::string_view to_string(Status status);

@@ -51,6 +51,7 @@
 #include <utility>
 
 #include "fracvi/core/newton_options.hpp"
+#include "fracvi/core/state_archive.hpp"
 #include "fracvi/integrate/solution.hpp"
 #include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/schemes/options.hpp"
@@ -91,8 +92,8 @@ class Integrator {
 
   /// Advances one step (k → k+1). Returns kRunning while steps remain, kSuccess (or kInaccurate,
   /// when the balance rule tripped on the way) after the last one, or a failure status (kUnstable
-  /// included); once finished or failed it does nothing and returns the status. Never allocates,
-  /// never throws.
+  /// included); kInterrupted, without a step, when options().interrupt asks to stop. Once
+  /// finished or failed it does nothing and returns the status. Never allocates, never throws.
   Status step() noexcept;
 
   /// Steps to the end. observer(const StepView&) is called for the current state if no step has
@@ -102,8 +103,10 @@ class Integrator {
     if (steps_done() == 0) observer(view());
     Status s = status();
     while (s == Status::kRunning) {
+      const std::size_t before = steps_done();
       s = step();
-      if (s == Status::kRunning || s == Status::kSuccess || s == Status::kInaccurate) {
+      const bool stepped = steps_done() != before;  // not when interrupted before the step
+      if (stepped && (s == Status::kRunning || s == Status::kSuccess || s == Status::kInaccurate)) {
         observer(view());
       }
     }
@@ -134,6 +137,15 @@ class Integrator {
   /// succeeded), records the wall time, drops unreached rows and hands the solution over. The
   /// Integrator is unusable afterwards.
   Solution take_solution();
+
+  /// Saves or restores the whole state of a running integration (core/state_archive.hpp): the
+  /// step index, the stored rows so far, the statistics, the health checks' running quantities
+  /// and the stepper's state (the damping memory included). An Integrator constructed with the
+  /// same problem, method and options and restored from a checkpoint taken after step k
+  /// continues exactly like the original after step k: the same rows, bit for bit. Throws
+  /// CheckpointError when the scheme cannot (SchemeInfo::checkpoints), when the run is not
+  /// running, or when the archive does not match this run.
+  void visit_state(StateArchive& archive);
 
   /// The mirror run alone: max_k ‖y_k − x_{N−k}‖_∞ over the stored rows, or NaN if the run has
   /// not succeeded or the backward Newton fails.

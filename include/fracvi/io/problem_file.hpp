@@ -14,6 +14,7 @@
 //              abs_tolerance, rel_tolerance,
 //              linear_solver, threads
 //   [output]   every                (the stride of the stored states)
+//              checkpoint_every     (fracvi run's checkpoints, io/checkpoint.hpp)
 //   [reference] position   (optional exact solution: d formulas in t)
 //
 // Parsing validates everything before a single step is taken: unknown sections and keys are
@@ -110,6 +111,9 @@ struct ProblemSpec {
   // [output]
   /// store every n-th step (IntegratorOptions::save_every) and the last
   long long every = static_cast<long long>(IntegratorOptions{}.save_every);
+  /// `fracvi run` writes a checkpoint of the whole state every n steps (0: none), from which
+  /// `fracvi run --resume DIR` continues bit-for-bit (io/checkpoint.hpp)
+  long long checkpoint_every = 0;
 
   // [reference]
   std::vector<std::string> reference;  ///< exact x(t), empty or d formulas in t

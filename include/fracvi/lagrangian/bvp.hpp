@@ -56,8 +56,16 @@ enum class BvpLinearSolver {
 };
 
 struct BvpOptions {
-  /// Converged when max_k |x-equation_k|, |y-equation_k| ≤ residual_tolerance.
+  /// Converged when max_k |x-equation_k|, |y-equation_k| ≤ residual_tolerance (or the round-off
+  /// floor, below).
   double residual_tolerance = 1e-10;
+  /// Converge at max(residual_tolerance, the round-off floor 2ε‖J‖_∞‖u‖_∞ of the last Jacobian)
+  /// (BvpSolution::residual_floor): the equations scale like 1/h², and a fixed tolerance falls
+  /// below what double precision can resolve as N grows (1e-10 against a floor of 1.3e-8 for a
+  /// linear BVP at N = 5000: Newton stagnated at 2.5e-9 and the run failed). The default; an
+  /// explicit tolerance (`fracvi bvp --tolerance`, Python's tolerance=) sets it false and is
+  /// taken as given.
+  bool above_round_off = true;
   int max_iterations = NewtonOptions{}.max_iterations;  ///< Newton iterations, ≥ 1 (one default)
   BvpLinearSolver linear_solver = BvpLinearSolver::kAuto;
   Eigen::Index dense_limit = 200;         ///< kAuto: unknowns 2(N−1)d up to this use dense LU
@@ -86,7 +94,7 @@ struct BvpSolution {
   /// Estimated rounding level of the equations, 2ε‖J‖_∞ max|x, y| (≈ ε|∂²L/∂ẋ²| |x|/h²) at the
   /// last Jacobian: a residual_tolerance below it cannot be met. 0 if no Jacobian was formed.
   double residual_floor = 0.0;
-  double residual_tolerance = 0.0;       ///< the tolerance it was solved to
+  double residual_tolerance = 0.0;       ///< the tolerance it was solved to (floor included)
   std::vector<double> residual_history;  ///< max-norm before each Newton iteration, and the last
   int newton_iterations = 0;
   std::size_t linear_iterations = 0;  ///< GMRES iterations in total (0 for dense LU)

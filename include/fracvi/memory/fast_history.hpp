@@ -63,6 +63,8 @@ class FastHistory final : public History {
   /// freedom; below kParallelWork multiply–adds per step one thread does everything (a parallel
   /// region costs about a microsecond).
   void set_threads(int threads) override;
+  /// The window (ring), the K recursions Y_j, the tail and the last sum.
+  void visit_state(StateArchive& archive) override;
 
   [[nodiscard]] const ExponentialFit& fit() const { return *fit_; }
   /// n0, the number of exactly weighted recent lags.

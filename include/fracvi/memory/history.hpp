@@ -27,6 +27,7 @@
 #include <string_view>
 #include <vector>
 
+#include "fracvi/core/state_archive.hpp"
 #include "fracvi/fractional/convolution_quadrature.hpp"
 
 namespace fracvi {
@@ -60,6 +61,9 @@ class History {
   /// Threads for the work over degrees of freedom (0 = OpenMP's default). Only the fast history
   /// has enough work per step to use them; the others ignore it.
   virtual void set_threads(int threads) { static_cast<void>(threads); }
+  /// Saves or restores the pushed values and every accumulator (core/state_archive.hpp), so that
+  /// a restored history continues bit-for-bit; the weights are rebuilt by the constructor.
+  virtual void visit_state(StateArchive& archive) = 0;
 };
 
 /// All x̃ kept, exact convolution with the quadrature's weights. O(k·d) per sum.
@@ -83,6 +87,7 @@ class DirectHistory final : public History {
   [[nodiscard]] Eigen::Index dimension() const override { return dimension_; }
   [[nodiscard]] ConvolutionQuadrature quadrature() const override { return quadrature_; }
   [[nodiscard]] const std::vector<double>& weights() const { return weights_; }
+  void visit_state(StateArchive& archive) override;
 
  private:
   ConvolutionQuadrature quadrature_;
@@ -114,6 +119,7 @@ class LocalHistory final : public History {
   }
   [[nodiscard]] Eigen::Index dimension() const override { return window_.rows(); }
   [[nodiscard]] ConvolutionQuadrature quadrature() const override { return quadrature_; }
+  void visit_state(StateArchive& archive) override;
 
  private:
   ConvolutionQuadrature quadrature_;

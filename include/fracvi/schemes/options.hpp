@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <optional>
 #include <string_view>
 
@@ -93,6 +94,13 @@ struct IntegratorOptions {
   /// Threads for the work over degrees of freedom (fast-history recursions): 0 = OpenMP's default
   /// (all cores, or OMP_NUM_THREADS); small systems run on one thread regardless.
   int threads = 0;
+  /// Polled before every step (and by the companion runs of the error estimate): when it returns
+  /// true the run stops there with Status::kInterrupted, the trajectory so far kept. `fracvi run`
+  /// sets it to a flag raised by SIGINT, SIGTERM and SIGHUP; Python to a check of its signal
+  /// handlers (Ctrl-C) about every 0.1 s. Must not throw or allocate (it runs in the step loop),
+  /// and once it has returned true it must keep returning true (the drivers ask again after the
+  /// run to tell an interrupted error estimate from a failed one).
+  std::function<bool()> interrupt;
 };
 
 /// Throws ValidationError naming the offending field.

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <span>
@@ -67,6 +68,10 @@ struct SchemeInfo {
   /// method.rel_tolerance (dopri5); the grid step h only samples its dense output, so the error
   /// follows the tolerances and the declared order is the order in the tolerance, not in h.
   bool adaptive = false;
+  /// Its stepper can save and restore its state (Stepper::visit_state), so that a run can write
+  /// checkpoints (`[output] checkpoint_every`) and be resumed bit-for-bit; refused before step 1
+  /// otherwise.
+  bool checkpoints = false;
   std::string_view applies_to;      ///< where it applies, in words ("every model", "2α = 1")
   std::string_view stability_rule;  ///< the stability bound in words
   /// The order the scheme reaches on smooth solutions of this model.
@@ -87,6 +92,8 @@ const SchemeInfo* find_scheme(std::string_view name);
 
 /// "fvi-gl, fvi-bdf2" (for messages).
 std::string scheme_names();
+/// The names of the schemes with a property, e.g. scheme_names_with(&SchemeInfo::checkpoints).
+std::string scheme_names_with(bool SchemeInfo::*property);
 
 /// The registry as text columns, one entry per scheme with the keys name, order, stages,
 /// variational, mirror, exact_balance, applies_to, stability, summary, reference (what
@@ -151,10 +158,14 @@ std::string_view auto_scheme_rule();
 
 /// The scheme "auto" runs: the first of fvi-lobatto3, fvi-midpoint, fvi-bdf2, fvi-gl that applies
 /// to `problem` with `options` (check_applicable: model, stability bound at this step, history,
-/// load). Chosen from the comparison study (docs/comparison.md): fvi-lobatto3 reaches a given
-/// accuracy at the least cost of the variational schemes on all five problems there; fvi-midpoint
-/// is stable for every h where it does not apply (0 <= 2α < 2); fvi-bdf2 covers 2α = 2. Throws the
-/// ValidationError of the last candidate when none applies.
-Method choose_scheme(const InitialValueProblem& problem, const IntegratorOptions& options = {});
+/// load). Chosen from the comparison study (docs/comparison.md): fvi-lobatto3 is 10³ and more
+/// times as accurate as the second-order schemes at equal N for 3–5 times the cost per step, and
+/// within 1.4–4× of the quickest scheme to 1e-6 on every problem there; fvi-midpoint is stable for
+/// every h where it does not apply (0 <= 2α < 2); fvi-bdf2 covers 2α = 2. `admissible`, when
+/// given, excludes candidates for what the run needs beyond the problem (e.g. checkpoints); fvi-gl,
+/// the last resort, is always tried. Throws the ValidationError of the last candidate when none
+/// applies.
+Method choose_scheme(const InitialValueProblem& problem, const IntegratorOptions& options = {},
+                     const std::function<bool(const SchemeInfo&)>& admissible = {});
 
 }  // namespace fracvi

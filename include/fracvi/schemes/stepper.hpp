@@ -24,6 +24,7 @@
 #include <string_view>
 
 #include "fracvi/core/matrix.hpp"
+#include "fracvi/core/state_archive.hpp"
 #include "fracvi/core/status.hpp"
 #include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/schemes/options.hpp"
@@ -78,6 +79,12 @@ class Stepper {
   /// The damping memory's implementation: "direct", "fast", "local" or "none" (what
   /// method.history = "auto" chose; Solution::history).
   [[nodiscard]] virtual std::string_view history_kind() const { return "none"; }
+  /// Saves or restores everything the next steps depend on (core/state_archive.hpp): the state at
+  /// step k, the step index, the damping memory, the energy account and any predictor carried
+  /// from step to step, so that a restored stepper continues bit-for-bit. A scheme that supports
+  /// it says so in its registry row (SchemeInfo::checkpoints); the default refuses with
+  /// CheckpointError.
+  virtual void visit_state(StateArchive& archive);
   /// Newton iterations of the last step (1 for a linear problem; 0 for an explicit step).
   [[nodiscard]] int last_iterations() const { return last_iterations_; }
 
@@ -90,6 +97,10 @@ class Stepper {
   Stepper() = default;
   /// The scheme's step. May throw what a user callback throws; must not allocate.
   virtual Status advance() = 0;
+  /// The records every visit_state starts with: the dimension and the step count (checked against
+  /// this run) and the step index k (restored; at most `steps`).
+  static void visit_step_index(StateArchive& archive, Eigen::Index dimension, std::size_t steps,
+                               std::size_t& k);
   /// Records a failure (printf-style cause) and returns its status.
   Status fail(Status status, const char* format, ...) noexcept;
   void set_iterations(int iterations) noexcept { last_iterations_ = iterations; }
