@@ -82,7 +82,7 @@ void estimate_error(const InitialValueProblem& problem, const Method& method,
     return;
   }
   if (!solution.ok()) {
-    e.note = "none: the run did not succeed";
+    e.note = "the run did not succeed";
     return;
   }
   const auto start = std::chrono::steady_clock::now();
