@@ -494,8 +494,9 @@ SweepSpec make_sweep(const Json& document, const std::string& source,
        {std::pair{"model.damping_order", "model.alpha"},
         std::pair{"model.alpha", "model.damping_order"}, std::pair{"time.step", "time.steps"},
         std::pair{"time.steps", "time.step"}}) {
+    const std::string_view name = spelling;  // structured bindings cannot be captured (clang 14)
     const bool swept = std::any_of(s.parameters.begin(), s.parameters.end(),
-                                   [&](const SweepParameter& p) { return p.path == spelling; });
+                                   [&](const SweepParameter& p) { return p.path == name; });
     const std::string section = std::string(other).substr(0, std::string(other).find('.'));
     const std::string key = std::string(other).substr(section.size() + 1);
     if (swept && s.base.contains(section) && s.base[section].is_object()) {
