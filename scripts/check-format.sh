@@ -2,7 +2,7 @@
 # Fails (listing the files) if any C++ source differs from what .clang-format prescribes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-mapfile -t files < <(find include src apps tests bench examples python -type f \
+mapfile -t files < <(find include src apps tests bench examples python fuzz -type f \
   \( -name '*.cpp' -o -name '*.hpp' -o -name '*.h' -o -name '*.cc' \) 2>/dev/null | sort)
 bad=()
 for f in "${files[@]}"; do
