@@ -30,6 +30,7 @@ gbench=(--benchmark_min_time="$min_time" --benchmark_repetitions=3
 "$build/bench/step_bench" "${gbench[@]}" | tee "$out/step_bench.txt"
 "$build/bench/chain_bench" "${gbench[@]}" | tee "$out/chain_bench.txt"
 "$build/bench/expression_bench" "${gbench[@]}" | tee "$out/expression_bench.txt"
+"$build/bench/pi_trapezoid_bench" --benchmark_min_time="$min_time" | tee "$out/pi_trapezoid_bench.txt"
 # Benchmark 2 of issue 6: d = 1000, N = 10^6, β = 1.5 — linear and FPUT chain, all cores and one.
 "$build/bench/fractional_chain" 1000 "$steps" 0 1 0 | tee "$out/fractional_chain_linear.txt"
 "$build/bench/fractional_chain" 1000 "$steps" 0 1 1 | tee "$out/fractional_chain_fput.txt"

@@ -15,18 +15,23 @@
 //   2α > 1:  M (v_n − v_0) + R I^{2−2α}(v − v_0)(t_n) = I¹G(t_n)   (a linear solve with M + s R).
 // The last term of each is J_n = ∫_0^{t_n} R D^{2α}x, the damping impulse: the energy account books
 // (J_n − J_{n−1})·½(v_{n−1} + v_n), O(h²).
-// History: direct, O(n·d) per step and O(N·d) memory (a fast PI history is future work).
+// History: method.history = "direct" sums every product directly, O(n·d) per step; "fast" (and
+// "auto" from kFftCrossover steps) accumulates them by OnlineConvolution, the FFT-blocked sums of
+// Hairer, Lubich & Schlichte (Garrappa's codes use the same), O(log² n · d) per step. Both keep the
+// values, O(N·d) memory. The load I²G has the weights a^{(2)}_m = 6m: a two-term recursion there.
 #include <Eigen/Eigenvalues>
 #include <boost/math/special_functions/gamma.hpp>
 #include <boost/math/special_functions/zeta.hpp>
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "baseline_support.hpp"
 #include "fracvi/core/error.hpp"
 #include "fracvi/core/matrix.hpp"
+#include "fracvi/memory/online_convolution.hpp"
 #include "fracvi/model/potential.hpp"
 #include "fracvi/schemes/stepper.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
@@ -57,9 +62,15 @@ class ProductTrapezoid {
   }
   /// h^γ/Γ(γ+2)
   [[nodiscard]] double scale() const { return scale_; }
+  /// a_0 … a_{n_max}
+  [[nodiscard]] Eigen::VectorXd weights() const { return reversed_.reverse(); }
+  /// a_{n,0}, the weight of g_0 at t_n.
+  [[nodiscard]] double first_weight(std::size_t n) const {
+    return taylor_remainder_of_power(n, gamma_ + 1.0);
+  }
   /// out = a_{n,0} g_0 + Σ_{j=1}^{n−1} a_{n−j} g_j (the part without g_n), rows g_j of `values`.
   void known(std::size_t n, const RowMatrixXd& values, Eigen::VectorXd& out) const {
-    out.noalias() = taylor_remainder_of_power(n, gamma_ + 1.0) * values.row(0).transpose();
+    out.noalias() = first_weight(n) * values.row(0).transpose();
     if (n >= 2) {
       const auto count = static_cast<Eigen::Index>(n - 1);
       const Eigen::Index first = reversed_.size() - static_cast<Eigen::Index>(n);  // a_{n−1}
@@ -71,6 +82,40 @@ class ProductTrapezoid {
   double gamma_, scale_;
   Eigen::VectorXd reversed_;  // reversed_[n_max − m] = a_m
 };
+
+// Steps from which method.history = "auto" takes the FFT-blocked sums (bench/RESULTS.md,
+// "pi-trapezoid history": below it the direct sums cost at most about as much).
+constexpr std::size_t kFftCrossover = 512;
+
+// The known part of one rule over one series, a_{n,0} z_0 + Σ_{j=1}^{n−1} a_{n−j} z_j: directly
+// (ProductTrapezoid::known), or with the interior sum from an OnlineConvolution over z_1, z_2, …
+// (its series index i is the row i + 1, so its s_{n−1} is the interior sum at t_n).
+class ProductSum {
+ public:
+  ProductSum(const ProductTrapezoid& rule, bool fft, Eigen::Index d, std::size_t n_steps)
+      : rule_(rule) {
+    if (fft) online_.emplace(rule.weights(), d, n_steps, 1);
+  }
+  void known(std::size_t n, const RowMatrixXd& values, Eigen::VectorXd& out) const {
+    if (!online_) return rule_.known(n, values, out);
+    out.noalias() =
+        rule_.first_weight(n) * values.row(0).transpose() + online_->pending(n - 1).transpose();
+  }
+  /// Row n ≥ 1 of values is final.
+  void commit(std::size_t n, const RowMatrixXd& values) {
+    if (online_) online_->commit(n - 1, values);
+  }
+  [[nodiscard]] std::size_t memory_bytes() const { return online_ ? online_->memory_bytes() : 0; }
+
+ private:
+  const ProductTrapezoid& rule_;
+  std::optional<OnlineConvolution> online_;
+};
+
+bool use_fft(const IntegratorOptions& options, std::size_t n_steps) {
+  return options.history == HistoryKind::kFast ||
+         (options.history == HistoryKind::kAuto && n_steps >= kFftCrossover);
+}
 
 class PiTrapezoidStepper final : public Stepper {
  public:
@@ -86,9 +131,13 @@ class PiTrapezoidStepper final : public Stepper {
         taylor_v0_(damped_ && beta_ > 1.0),
         mass_(problem.model.mass.symmetric_part()),
         damping_(problem.model.damping.symmetric_part()),
+        fft_(use_fft(options, n_steps_)),
         memory_(2.0 - beta_, h_, n_steps_),
         velocity_memory_(beta_ > 1.0 ? 2.0 - beta_ : 1.0 - beta_, h_, n_steps_),
         load_(2.0, h_, n_steps_),
+        position_sum_(memory_, fft_ && damped_, d_, n_steps_),
+        // 2α > 1: the rule of memory_ over e; otherwise velocity_memory_'s over d.
+        velocity_sum_(taylor_v0_ ? memory_ : velocity_memory_, fft_ && damped_, d_, n_steps_),
         // A = M + s R with s = h^{2−2α}/Γ(4−2α); the Newton equation A Δ + (h²/6)∇U_f(x + Δ) = c
         // is MidpointNewton's A Δ' + (h'²/2)∇U_f(x + Δ'/2) = 2c with Δ' = 2Δ, h' = 2h/√6.
         newton_matrix_(damped_ ? linear_combination(mass_, memory_.scale(), damping_) : mass_),
@@ -98,11 +147,12 @@ class PiTrapezoidStepper final : public Stepper {
         velocity_solver_(newton_matrix_, damping_, options.linear_solver),
         external_(problem) {
     const auto rows = static_cast<Eigen::Index>(n_steps_ + 1);
-    values_d_.setZero(rows, d_);
-    values_g_.setZero(rows, d_);
+    values_d_.setZero(damped_ ? rows : 1, d_);
+    values_g_.setZero(fft_ ? 1 : rows, d_);  // the FFT path keeps G_0 and two running sums
     if (taylor_v0_) values_e_.setZero(rows, d_);
-    for (Eigen::VectorXd* vec : {&x_, &v_, &p_, &x_next_, &v_next_, &g_, &f_, &rhs_, &sum_, &tmp_,
-                                 &dx_, &impulse_, &impulse_next_, &load_sum_}) {
+    for (Eigen::VectorXd* vec :
+         {&x_, &v_, &p_, &x_next_, &v_next_, &g_, &f_, &rhs_, &sum_, &tmp_, &dx_, &impulse_,
+          &impulse_next_, &load_sum_, &load_total_, &load_ramp_, &velocity_known_}) {
       vec->setZero(d_);
     }
     x_ = problem.x0;
@@ -121,10 +171,11 @@ class PiTrapezoidStepper final : public Stepper {
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
-  [[nodiscard]] std::string_view history_kind() const override { return "direct"; }
+  [[nodiscard]] std::string_view history_kind() const override { return fft_ ? "fft" : "direct"; }
   [[nodiscard]] std::size_t history_bytes() const override {
     return static_cast<std::size_t>(values_d_.size() + values_g_.size() + values_e_.size()) *
-           sizeof(double);
+               sizeof(double) +
+           position_sum_.memory_bytes() + velocity_sum_.memory_bytes();
   }
 
  private:
@@ -162,10 +213,14 @@ class PiTrapezoidStepper final : public Stepper {
     // c = M(x_0 + τ v_0) + s R (T_n − Hd) + (h²/6) H2 − A x_{n−1}.
     tmp_ = problem_.x0 + tau * problem_.v0;
     mass_.multiply(tmp_, rhs_);
-    load_.known(n, values_g_, sum_);
+    if (fft_) {
+      sum_ = load_.first_weight(n) * values_g_.row(0).transpose() + load_ramp_;
+    } else {
+      load_.known(n, values_g_, sum_);
+    }
     rhs_ += load_.scale() * sum_;
     if (damped_) {
-      memory_.known(n, values_d_, sum_);
+      position_sum_.known(n, values_d_, sum_);
       taylor(n, tmp_);
       tmp_ -= sum_;
       damping_.multiply(tmp_, sum_);
@@ -181,30 +236,41 @@ class PiTrapezoidStepper final : public Stepper {
     x_next_ = x_ + 0.5 * dx_;
     if (!x_next_.allFinite()) return fail(Status::kNonFinite, "non-finite position");
     const auto row = static_cast<Eigen::Index>(n);
-    taylor(n, tmp_);
-    values_d_.row(row) = (x_next_ - tmp_).transpose();
+    if (damped_) {
+      taylor(n, tmp_);
+      values_d_.row(row) = (x_next_ - tmp_).transpose();
+      position_sum_.commit(n, values_d_);
+    }
     load(x_next_, t, f_ptr);
-    values_g_.row(row) = g_.transpose();
+    if (fft_) {
+      // a^{(2)}_m = (m−1)³ − 2m³ + (m+1)³ = 6m, so the interior sum at t_{n+1} is the one at
+      // t_n plus 6 Σ_{j=1}^{n} G_j.
+      load_total_ += g_;
+      load_ramp_ += 6.0 * load_total_;
+    } else {
+      values_g_.row(row) = g_.transpose();
+    }
 
     // Velocity and the damping impulse J_n.
     load_sum_ += (0.5 * h_) * g_;  // I¹G(t_n), trapezoidal
     impulse_next_.setZero();
     if (damped_ && beta_ > 1.0) {
       // (M + s R) v_n = M v_0 + s R (v_0 − He) + I¹G(t_n), He over e_j = v_j − v_0.
-      memory_.known(n, values_e_, sum_);
-      tmp_ = problem_.v0 - sum_;
+      velocity_sum_.known(n, values_e_, velocity_known_);
+      tmp_ = problem_.v0 - velocity_known_;
       damping_.multiply(tmp_, sum_);
       mass_.multiply(problem_.v0, tmp_);
       tmp_ += memory_.scale() * sum_ + load_sum_;
       velocity_solver_.inverse(tmp_, v_next_);
       values_e_.row(row) = (v_next_ - problem_.v0).transpose();
-      memory_.known(n, values_e_, sum_);
-      sum_ += values_e_.row(row).transpose();
+      velocity_sum_.commit(n, values_e_);
+      sum_ = velocity_known_ + values_e_.row(row).transpose();
       damping_.multiply(sum_, impulse_next_);
       impulse_next_ *= memory_.scale();
     } else {
       if (damped_) {
-        velocity_memory_.known(n, values_d_, sum_);
+        velocity_sum_.known(n, values_d_, sum_);
+        velocity_sum_.commit(n, values_d_);
         sum_ += values_d_.row(row).transpose();
         damping_.multiply(sum_, impulse_next_);
         impulse_next_ *= velocity_memory_.scale();
@@ -236,8 +302,10 @@ class PiTrapezoidStepper final : public Stepper {
   double h_;
   bool damped_, diagnostics_, taylor_x0_, taylor_v0_;
   ModelMatrix mass_, damping_;
+  bool fft_;  // OnlineConvolution sums (method.history = "fast", or "auto" for long runs)
   ProductTrapezoid memory_, velocity_memory_, load_;
-  ModelMatrix newton_matrix_;  // M + s R
+  ProductSum position_sum_, velocity_sum_;  // memory_ over d; the velocity's rule over e or d
+  ModelMatrix newton_matrix_;               // M + s R
   MidpointNewton newton_;
   MassSolver mass_solver_, velocity_solver_;  // M⁻¹ and (M + s R)⁻¹
   ExternalWork external_;
@@ -245,6 +313,8 @@ class PiTrapezoidStepper final : public Stepper {
   std::size_t k_ = 0;
   Eigen::VectorXd x_, v_, p_, x_next_, v_next_, g_, f_, rhs_, sum_, tmp_, dx_, impulse_,
       impulse_next_, load_sum_;
+  Eigen::VectorXd load_total_, load_ramp_;  // FFT path: Σ_{j=1}^{n} G_j and the I² interior sum
+  Eigen::VectorXd velocity_known_;          // the velocity rule's known part at t_n
   double work_ = 0.0, supplied_ = 0.0;
 };
 
@@ -296,7 +366,8 @@ const SchemeInfo kPiTrapezoid{
     .name = "pi-trapezoid",
     .summary =
         "product-integration trapezoidal rule on the Volterra form of the Caputo problem "
-        "(Garrappa's MT_FDE_PI2_IM; baseline), direct O(N^2) history",
+        "(Garrappa's MT_FDE_PI2_IM; baseline); direct or FFT-blocked (Hairer-Lubich-Schlichte) "
+        "history",
     .reference = "Garrappa, Mathematics 6(2) 16, 2018 (FDE codes, MT_FDE_PI2_IM)",
     .order_rule = "2",
     .stages = 1,
@@ -304,7 +375,7 @@ const SchemeInfo kPiTrapezoid{
     .variational_quadrature = std::nullopt,
     .has_mirror = false,
     .exact_balance = false,
-    .fast_history = false,
+    .fast_history = true,  // FFT-blocked sums (OnlineConvolution): O(log² N) per step
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
     .forcing_moments = false,
     .applies_to = "Caputo (Riemann-Liouville with initial data where the two coincide)",
