@@ -126,4 +126,20 @@ LagrangianProblem load_lagrangian_problem(const std::string& file,
 /// d formulas in t separated by commas outside parentheses; UsageError naming the flag otherwise.
 Curve parse_curve(const std::string& flag, const std::string& text, Eigen::Index d);
 
+/// What `fracvi convergence` and `fracvi compare` share: the problem, the step counts, the
+/// reference (exact formulas or a fine run), overrides, the output directory and --no-plot.
+struct StudyOptions {
+  std::string file;
+  std::vector<std::size_t> steps;
+  std::vector<std::string> reference;
+  std::size_t reference_steps = 0;
+  std::vector<std::string> overrides;
+  std::string out;
+  bool no_plot = false;
+};
+/// Declares the StudyOptions on a study command; `output` names its default directory
+/// (./fracvi-out/<name><output>) and `plots` what --no-plot leaves out.
+void add_study_options(CLI::App* app, StudyOptions& opt, const std::string& output,
+                       const std::string& plots);
+
 }  // namespace fracvi::cli

@@ -84,18 +84,11 @@ std::string energy_csv(const EnergyTrack& e) {
 }  // namespace
 
 Command add_compare_command(CLI::App& parent) {
-  struct Options {
-    std::string file;
+  struct Options : StudyOptions {
     std::vector<std::string> schemes;
-    std::vector<std::size_t> steps;
-    std::vector<std::string> reference;
-    std::size_t reference_steps = 0;
     std::string reference_scheme;
     std::size_t energy_steps = 0;
     int repeat = 1;
-    std::vector<std::string> overrides;
-    std::string out;
-    bool no_plot = false;
     bool quiet = false;
   };
   auto opt = std::make_shared<Options>();
@@ -106,20 +99,12 @@ Command add_compare_command(CLI::App& parent) {
       "error, wall time, Newton iterations. Writes compare.csv, energy.csv and the plots "
       "work_precision.png, error_vs_steps.png, energy_tracking.png. The reference is the exact "
       "solution ([reference] position, or --reference) or a fine run (--reference-steps).");
-  app->add_option("problem", opt->file, "problem file (TOML)")->required();
+  add_study_options(app, *opt, "-compare",
+                    "work_precision.png, error_vs_steps.png, energy_tracking.png");
   app->add_option("--schemes", opt->schemes,
                   "schemes, comma-separated (default: every registered scheme; one that does not "
                   "apply is a row with the reason)")
       ->delimiter(',');
-  app->add_option("--steps", opt->steps, "step counts, increasing, comma-separated")
-      ->required()
-      ->delimiter(',');
-  app->add_option("--reference", opt->reference,
-                  "exact x(t): d formulas in t, comma-separated (overrides [reference])")
-      ->delimiter(',');
-  app->add_option("--reference-steps", opt->reference_steps,
-                  "reference by a fine run with this many steps (a larger multiple of every "
-                  "--steps entry); used instead of an exact solution when given");
   app->add_option("--reference-scheme", opt->reference_scheme,
                   "the fine run's scheme (default: dopri5 at tolerances 1e-13 where it applies, "
                   "else fvi-lobatto4, fvi-lobatto3, fvi-midpoint)");
@@ -127,9 +112,6 @@ Command add_compare_command(CLI::App& parent) {
                   "the N of the energy-tracking figure (one of --steps; default: the middle one)");
   app->add_option("--repeat", opt->repeat, "runs per scheme and N; the best wall time is kept")
       ->check(CLI::PositiveNumber);
-  app->add_option("--set", opt->overrides, "override a problem value (repeatable)");
-  app->add_option("--out", opt->out, "output directory (default ./fracvi-out/<name>-compare)");
-  app->add_flag("--no-plot", opt->no_plot, "do not draw the plots");
   app->add_flag("-q,--quiet", opt->quiet, "print only the summary lines, not the table");
 
   auto run = [opt]() {

@@ -21,36 +21,14 @@
 namespace fracvi::cli {
 
 Command add_convergence_command(CLI::App& parent) {
-  struct Options {
-    std::string file;
-    std::vector<std::size_t> steps;
-    std::vector<std::string> reference;
-    std::size_t reference_steps = 0;
-    std::vector<std::string> overrides;
-    std::string out;
-    bool no_plot = false;
-  };
-  auto opt = std::make_shared<Options>();
+  auto opt = std::make_shared<StudyOptions>();
   CLI::App* app = parent.add_subcommand(
       "convergence",
       "Run a problem with several step counts and print h | max error over the grid | observed "
       "order, plus the least-squares order; write convergence.csv and a log-log "
       "convergence.png. The reference is the exact solution ([reference] position in the file, "
       "or --reference) or, without one, a run with --reference-steps steps.");
-  app->add_option("problem", opt->file, "problem file (TOML)")->required();
-  app->add_option("--steps", opt->steps, "step counts, increasing, comma-separated")
-      ->required()
-      ->delimiter(',');
-  app->add_option("--reference", opt->reference,
-                  "exact x(t): d formulas in t, comma-separated (overrides [reference])")
-      ->delimiter(',');
-  app->add_option("--reference-steps", opt->reference_steps,
-                  "without an exact solution: step count of the reference run (a multiple of "
-                  "every --steps entry)");
-  app->add_option("--set", opt->overrides, "override a problem value (repeatable)");
-  app->add_option("--out", opt->out,
-                  "output directory (default ./fracvi-out/<problem name>-convergence)");
-  app->add_flag("--no-plot", opt->no_plot, "do not draw convergence.png");
+  add_study_options(app, *opt, "-convergence", "convergence.png");
 
   auto run = [opt]() {
     ProblemSpec spec;

@@ -1,5 +1,7 @@
 #include "fracvi/analysis/comparison.hpp"
 
+#include "fracvi/analysis/convergence.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <memory>
@@ -64,15 +66,7 @@ Comparison compare_schemes(const std::string& problem, double t0, double interva
                            const RunScheme& run, const ComparisonReference& reference,
                            const ComparisonOptions& options) {
   if (schemes.empty()) throw std::invalid_argument("--schemes: give at least one scheme");
-  if (steps.empty()) throw std::invalid_argument("--steps: give at least one step count");
-  for (std::size_t i = 0; i < steps.size(); ++i) {
-    if (steps[i] < 1) throw std::invalid_argument("--steps: step counts must be positive");
-    if (i > 0 && steps[i] <= steps[i - 1]) {
-      throw std::invalid_argument("--steps: step counts must increase (" +
-                                  std::to_string(steps[i]) + " after " +
-                                  std::to_string(steps[i - 1]) + ")");
-    }
-  }
+  check_step_counts(steps, 1);
   if (options.repeat < 1) {
     throw std::invalid_argument("--repeat = " + std::to_string(options.repeat) +
                                 ": must be at least 1");

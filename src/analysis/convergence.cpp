@@ -56,17 +56,40 @@ double max_error(const Solution& coarse, const Solution& fine) {
   return worst;
 }
 
+void check_step_counts(std::span<const std::size_t> steps, std::size_t minimum) {
+  if (steps.size() < minimum) {
+    throw std::invalid_argument("--steps: give at least " + std::to_string(minimum) +
+                                (minimum == 1 ? " step count" : " step counts"));
+  }
+  for (std::size_t i = 0; i < steps.size(); ++i) {
+    if (steps[i] < 1) throw std::invalid_argument("--steps: step counts must be positive");
+    if (i > 0 && steps[i] <= steps[i - 1]) {
+      throw std::invalid_argument("--steps: step counts must increase (" +
+                                  std::to_string(steps[i]) + " after " +
+                                  std::to_string(steps[i - 1]) + ")");
+    }
+  }
+}
+
+void check_reference_steps(std::size_t reference_steps, std::span<const std::size_t> steps) {
+  if (reference_steps == 0) {
+    throw std::invalid_argument(
+        "no reference: give [reference] position in the file, --reference or --reference-steps");
+  }
+  for (std::size_t n : steps) {
+    if (n == 0 || reference_steps % n != 0 || reference_steps <= n) {
+      throw std::invalid_argument("--reference-steps = " + std::to_string(reference_steps) +
+                                  " must be a larger multiple of every --steps entry (" +
+                                  std::to_string(n) + " is not a divisor)");
+    }
+  }
+}
+
 ConvergenceStudy convergence_study(const std::string& problem, double interval,
                                    const RunWithSteps& run, std::span<const std::size_t> steps,
                                    std::span<const std::string> exact,
                                    std::size_t reference_steps) {
-  if (steps.size() < 2) throw std::invalid_argument("--steps: give at least two step counts");
-  for (std::size_t i = 0; i < steps.size(); ++i) {
-    if (steps[i] < 1) throw std::invalid_argument("--steps: step counts must be positive");
-    if (i > 0 && steps[i] <= steps[i - 1]) {
-      throw std::invalid_argument("--steps: step counts must increase");
-    }
-  }
+  check_step_counts(steps, 2);
   ConvergenceStudy study;
   study.problem = problem;
   std::vector<Expression> reference;
@@ -75,18 +98,7 @@ ConvergenceStudy convergence_study(const std::string& problem, double interval,
     reference = parse_reference(exact);
     study.reference = "exact solution";
   } else {
-    if (reference_steps == 0) {
-      throw std::invalid_argument(
-          "no reference: give [reference] position in the file, --reference or "
-          "--reference-steps");
-    }
-    for (std::size_t n : steps) {
-      if (reference_steps % n != 0 || reference_steps <= n) {
-        throw std::invalid_argument("--reference-steps = " + std::to_string(reference_steps) +
-                                    " must be a larger multiple of every --steps entry (" +
-                                    std::to_string(n) + " is not a divisor)");
-      }
-    }
+    check_reference_steps(reference_steps, steps);
     fine = run(reference_steps);
     if (!fine.ok()) throw std::runtime_error("the reference run failed: " + fine.message);
     study.reference = "fine run with " + std::to_string(reference_steps) + " steps";

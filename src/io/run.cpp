@@ -107,16 +107,32 @@ PreparedBvp prepare_bvp(ProblemSpec spec) {
   }
 }
 
+namespace {
+
+// One run of a study (convergence, comparison): spec with `scheme` and `steps`, every step stored
+// (errors are taken on the whole grid, whatever output.every), no mirror run, no error estimate,
+// no tolerance doubling — a study measures the true error of x and the cost of the integration
+// alone.
+PreparedRun prepare_study_run(const ProblemSpec& spec, const std::string& scheme,
+                              std::size_t steps) {
+  ProblemSpec copy = spec;
+  copy.scheme = scheme;
+  copy.steps = static_cast<long long>(steps);
+  copy.tolerance = 0.0;
+  PreparedRun prepared = prepare_run(std::move(copy));
+  prepared.options.mirror = false;
+  prepared.options.error_estimate = ErrorEstimateKind::kNone;
+  prepared.options.save_every = 1;
+  return prepared;
+}
+
+}  // namespace
+
 ConvergenceStudy convergence_study(const ProblemSpec& spec, std::span<const std::size_t> steps,
                                    std::span<const std::string> exact,
                                    std::size_t reference_steps) {
   const RunWithSteps run = [&spec](std::size_t n) {
-    ProblemSpec copy = spec;
-    copy.steps = static_cast<long long>(n);
-    PreparedRun prepared = prepare_run(std::move(copy));
-    prepared.options.mirror = false;  // the study measures x only; the mirror run doubles the cost
-    prepared.options.error_estimate = ErrorEstimateKind::kNone;  // it measures the true error
-    prepared.options.save_every = 1;  // errors are taken on the whole grid, whatever output.every
+    const PreparedRun prepared = prepare_study_run(spec, spec.scheme, n);
     return integrate(prepared.problem, prepared.method, prepared.options);
   };
   return convergence_study(spec.name, spec.end - spec.start, run, steps, exact, reference_steps);
@@ -124,20 +140,12 @@ ConvergenceStudy convergence_study(const ProblemSpec& spec, std::span<const std:
 
 namespace {
 
-// One run of the compared problem: spec with `scheme` and `steps`, every step stored, no mirror
-// run, no error estimate, no tolerance doubling (the comparison measures the true error and the
-// cost of the integration alone). A refusal of the scheme becomes NotApplicable.
+// One run of the compared problem (prepare_study_run); a refusal of the scheme becomes
+// NotApplicable.
 Solution run_for_comparison(const ProblemSpec& spec, const std::string& scheme, std::size_t steps,
                             const std::function<void(IntegratorOptions&)>& adjust = {}) {
-  ProblemSpec copy = spec;
-  copy.scheme = scheme;
-  copy.steps = static_cast<long long>(steps);
-  copy.tolerance = 0.0;
   try {
-    PreparedRun prepared = prepare_run(std::move(copy));
-    prepared.options.mirror = false;
-    prepared.options.error_estimate = ErrorEstimateKind::kNone;
-    prepared.options.save_every = 1;
+    PreparedRun prepared = prepare_study_run(spec, scheme, steps);
     if (adjust) adjust(prepared.options);
     return integrate(prepared.problem, prepared.method, prepared.options);
   } catch (const ProblemFileError& e) {
@@ -219,18 +227,7 @@ Comparison compare_schemes(const ProblemSpec& spec, const ComparisonSetup& setup
     reference = exact_reference(spec, exact);
   } else {
     const std::size_t nf = setup.reference_steps;
-    if (nf == 0) {
-      throw std::invalid_argument(
-          "no reference: give [reference] position in the file, --reference or "
-          "--reference-steps");
-    }
-    for (std::size_t n : setup.steps) {
-      if (n == 0 || nf % n != 0 || nf <= n) {
-        throw std::invalid_argument("--reference-steps = " + std::to_string(nf) +
-                                    " must be a larger multiple of every --steps entry (" +
-                                    std::to_string(n) + " is not a divisor)");
-      }
-    }
+    check_reference_steps(nf, setup.steps);
     const std::string scheme = setup.reference_scheme.empty() ? default_reference_scheme(spec, nf)
                                                               : setup.reference_scheme;
     const SchemeInfo* info = find_scheme(scheme);

@@ -123,8 +123,8 @@ void check_applicable(const InitialValueProblem& problem, const Method& method,
   if (options.history == HistoryKind::kFast && !info.fast_history && !problem.model.is_undamped()) {
     throw ValidationError("method.history = \"fast\" is not available for method.scheme = \"" +
                           std::string(info.name) +
-                          "\" (no sum-of-exponentials fit of its memory weights yet): use \"auto\" "
-                          "(the direct sum for this scheme) or \"direct\"");
+                          "\" (no fast memory for its weights): use \"auto\" (the direct sum for "
+                          "this scheme) or \"direct\"");
   }
   if (options.load == ForcingLoad::kMoments && !info.forcing_moments) {
     const std::string with = scheme_names_with(&SchemeInfo::forcing_moments);

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/test_problems.hpp"
 #include "fracvi/fractional/exponential_fit.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/memory/fast_history.hpp"
@@ -17,26 +18,8 @@
 namespace fracvi {
 namespace {
 
-struct Duffing {
-  template <class T>
-  T operator()(const Eigen::Matrix<T, 1, 1>& x, T) const {
-    return T(0.5) * x(0) * x(0) + T(0.25) * x(0) * x(0) * x(0) * x(0);
-  }
-};
-
 InitialValueProblem oscillator(double alpha, std::size_t steps) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd::Constant(1, 1, 1.0);
-  p.model.damping = Eigen::MatrixXd::Constant(1, 1, 0.4);
-  p.model.alpha = alpha;
-  p.model.convention = Convention::kCaputo;
-  p.model.potential = make_autodiff_potential<1>(Duffing{}, 1, {.time_dependent = false});
-  p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) { f(0) = 0.3 * std::cos(1.1 * t); };
-  p.x0 = Eigen::VectorXd::Constant(1, 1.5);
-  p.v0 = Eigen::VectorXd::Constant(1, -0.2);
-  p.t_end = 200.0;
-  p.steps = steps;
-  return p;
+  return test::forced_duffing(alpha, steps);
 }
 
 Solution run(const InitialValueProblem& p, const Method& method, HistoryKind kind,

@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "../support/test_problems.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/memory/online_convolution.hpp"
 #include "fracvi/model/autodiff_potential.hpp"
@@ -108,28 +109,6 @@ TEST(OnlineConvolution, CommitDoesNotAllocate) {
 // pi-trapezoid: the FFT history ("fast") against the direct sums on whole trajectories of a
 // forced nonlinear (Duffing) oscillator, 2α = 0.6 and 1.5, N = 20000, and a 2-DOF linear problem
 // with full M and R; "auto" takes the FFT sums from 512 steps.
-struct Duffing {
-  template <class T>
-  T operator()(const Eigen::Matrix<T, 1, 1>& x, T) const {
-    return T(0.5) * x(0) * x(0) + T(0.25) * x(0) * x(0) * x(0) * x(0);
-  }
-};
-
-InitialValueProblem duffing(double alpha, std::size_t steps) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd::Constant(1, 1, 1.0);
-  p.model.damping = Eigen::MatrixXd::Constant(1, 1, 0.4);
-  p.model.alpha = alpha;
-  p.model.convention = Convention::kCaputo;
-  p.model.potential = make_autodiff_potential<1>(Duffing{}, 1, {.time_dependent = false});
-  p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) { f(0) = 0.3 * std::cos(1.1 * t); };
-  p.x0 = Eigen::VectorXd::Constant(1, 1.5);
-  p.v0 = Eigen::VectorXd::Constant(1, -0.2);
-  p.t_end = 200.0;
-  p.steps = steps;
-  return p;
-}
-
 InitialValueProblem two_dof(double alpha, std::size_t steps) {
   InitialValueProblem p;
   p.model.mass = Eigen::MatrixXd{{2.0, 0.3}, {0.3, 1.0}};
@@ -157,7 +136,8 @@ Solution run_pi(const InitialValueProblem& p, HistoryKind kind) {
 // oscillator amplifies round-off: 1.7e-11 at 2α = 0.6; the linear 2-DOF problem 1.9e-13).
 TEST(PiTrapezoidFftHistory, WholeTrajectoriesAgreeWithTheDirectSums) {
   for (double alpha : {0.3, 0.75}) {
-    for (const InitialValueProblem& p : {duffing(alpha, 20000), two_dof(alpha, 5000)}) {
+    for (const InitialValueProblem& p :
+         {test::forced_duffing(alpha, 20000), two_dof(alpha, 5000)}) {
       const Solution direct = run_pi(p, HistoryKind::kDirect);
       const Solution fft = run_pi(p, HistoryKind::kFast);
       ASSERT_TRUE(direct.ok() && fft.ok()) << direct.message << fft.message;
@@ -184,10 +164,12 @@ TEST(PiTrapezoidFftHistory, WholeTrajectoriesAgreeWithTheDirectSums) {
 }
 
 TEST(PiTrapezoidFftHistory, AutoTakesTheFftSumsFrom512Steps) {
-  EXPECT_EQ(run_pi(duffing(0.75, 511), HistoryKind::kAuto).history, "direct");
-  const Solution automatic = run_pi(duffing(0.75, 512), HistoryKind::kAuto);
+  EXPECT_EQ(run_pi(test::forced_duffing(0.75, 511), HistoryKind::kAuto).history, "direct");
+  const Solution automatic = run_pi(test::forced_duffing(0.75, 512), HistoryKind::kAuto);
   EXPECT_EQ(automatic.history, "fft");
-  EXPECT_EQ((automatic.x - run_pi(duffing(0.75, 512), HistoryKind::kFast).x).cwiseAbs().maxCoeff(),
+  EXPECT_EQ((automatic.x - run_pi(test::forced_duffing(0.75, 512), HistoryKind::kFast).x)
+                .cwiseAbs()
+                .maxCoeff(),
             0.0);
 }
 

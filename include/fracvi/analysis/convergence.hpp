@@ -30,6 +30,15 @@ double max_error(const Solution& coarse, const Solution& fine);
 /// Parses d reference formulas in t (ExpressionError on a malformed one).
 std::vector<Expression> parse_reference(std::span<const std::string> formulas);
 
+/// The step counts of a study (convergence, comparison): at least `minimum` of them, positive and
+/// increasing. Throws std::invalid_argument naming --steps and the offending entries.
+void check_step_counts(std::span<const std::size_t> steps, std::size_t minimum);
+
+/// A fine reference run's step count: nonzero (else "no reference: …") and a larger multiple of
+/// every study step count, so that its grid contains theirs. Throws std::invalid_argument naming
+/// --reference-steps.
+void check_reference_steps(std::size_t reference_steps, std::span<const std::size_t> steps);
+
 struct ConvergenceRow {
   std::size_t steps = 0;
   double h = 0.0;

@@ -53,9 +53,11 @@ struct SchemeInfo {
   bool has_mirror = false;  ///< the backward mirror run exists (Solution::mirror_error)
   /// E_k + W_k − E_0 = 0 to round-off for quadratic, time-independent U (any R, α, f).
   bool exact_balance = false;
-  /// method.history = "fast" is available (a sum-of-exponentials memory, independent of N);
-  /// "auto" uses it where it pays. Without it the memory is summed directly (O(N) per step) and
-  /// "fast" is refused before step 1.
+  /// method.history = "fast" is available: a memory whose cost per step does not grow like N
+  /// (a sum-of-exponentials memory, independent of N; for pi-trapezoid, whose product-integration
+  /// weights have no exponential fit, the FFT-blocked sums of OnlineConvolution, O(log² N) per
+  /// step). "auto" uses it where it pays. Without it the memory is summed directly (O(N) per
+  /// step) and "fast" is refused before step 1.
   bool fast_history = false;
   /// The convolution quadrature (of order 2α) of the damping force in the scheme's momenta p_k.
   /// Its weights ω carry round-off in the positions into the velocities:
