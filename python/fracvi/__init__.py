@@ -35,7 +35,10 @@ frac_delta_plus) and continuous Riemann–Liouville derivatives (rl_derivative).
 Build: `cmake --preset release && cmake --build --preset release`, then
 `PYTHONPATH=build/release/python /usr/bin/python3` (Debian's interpreter, which has NumPy).
 """
+import json
 import os
+import sys
+from collections import namedtuple
 from collections.abc import Mapping
 
 import numpy as np
@@ -48,7 +51,8 @@ from .plot_sweep import SweepResult
 from ._fracvi import ProblemError
 
 __all__ = [
-    "Problem", "ProblemError", "Solution", "IntegrationError", "integrate", "write", "plot",
+    "Problem", "ProblemError", "Solution", "IntegrationError", "integrate", "Integrator", "State",
+    "write", "load", "plot",
     "BvpSolution", "solve_bvp", "methods", "problem_schema",
     "gl_weights", "cq_weights", "midpoint", "delta_minus", "delta_plus", "frac_delta_minus",
     "frac_delta_plus", "convolve_past", "convolve_future", "rl_derivative",
@@ -356,6 +360,11 @@ class Solution:
                 f"mirror_error={self.mirror_error:.3g})")
 
 
+def _run_options(mirror, diagnostics, newton_absolute_tolerance, history, start):
+    return _fracvi.RunOptions(bool(mirror), bool(diagnostics), float(newton_absolute_tolerance),
+                              history or "", start)
+
+
 def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostics=True,
               history=None, start="legendre", raise_on_failure=False, **fields):
     """Integrates `problem` (a Problem, a dict, or a TOML path/text) to its final time.
@@ -387,8 +396,8 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostic
     """
     problem = _with_fields(_as_problem(problem), fields, "integrate", _FIELD_SECTIONS,
                            _RUN_OPTIONS)
-    run = _fracvi.integrate(problem._spec, bool(mirror), bool(diagnostics),
-                            float(newton_absolute_tolerance), history or "", start)
+    run = _fracvi.integrate(problem._spec, _run_options(mirror, diagnostics,
+                                                        newton_absolute_tolerance, history, start))
     solution = Solution(run, problem)
     if run.interrupt is not None:
         # Ctrl-C (or another signal whose handler raised) during the run: the run stopped at the
@@ -400,6 +409,137 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostic
     if raise_on_failure and not solution.ok:
         raise IntegrationError(solution)
     return solution
+
+
+State = namedtuple("State", "k t x v p energy dissipated balance")
+State.__doc__ = """The state of an Integrator after step k: t = t_k, positions x_k, velocities v_k,
+momenta p_k = M v_k (arrays, copies), and the diagnostics E_k, W_k, E_k + W_k − E_0 (NaN with
+diagnostics=False)."""
+
+
+class Integrator:
+    """Steps a problem by hand: the C++ Integrator (fracvi/integrate/integrator.hpp) from Python.
+
+    Integrator(problem, **options) takes what integrate() takes: a Problem, a dict or a TOML
+    path/text, any key of [method] and [output] as a keyword (scheme="fvi-bdf2", every=10, ...)
+    and the run options newton_absolute_tolerance, mirror, diagnostics, history, start and
+    raise_on_failure. It checks the problem and sets up the whole storage at once (as integrate
+    does), then
+
+    * step() takes one step and returns the status ("running" while steps remain, "success" after
+      the last one, or a failure: "newton-failure", "non-finite", "unstable", …);
+    * run(until=t) takes the steps up to the last grid time t_k <= t (the grid is t_0 + k h;
+      round-off of 1e-9 steps is forgiven), run(steps=n) n more (at most to the end), run() all
+      that remain; observer(state) is called after every step (and at k = 0 when no step was
+      taken yet). Returns the status;
+    * state is the State (k, t, x, v, p, energy, dissipated, balance) now; status, k, t and
+      steps (N) the rest.
+    * solution() returns a Solution of the steps taken: while running the rows so far with
+      status "running"; once the run has ended, the finished Solution (mirror run and error
+      estimate included), the same as integrate(problem) returns, bit for bit.
+
+    A step that fails ends the integration: the status says how (as in integrate), solution()
+    has the message and the rows so far; raise_on_failure=True raises IntegrationError instead.
+    An exception raised by the observer ends run() and propagates with the solution so far as its
+    attribute .solution; the Integrator stays at the last completed step and can go on. Ctrl-C
+    during run() stops it before the next step (within about 0.1 s) and raises KeyboardInterrupt
+    with .solution (status "interrupted", the rows so far); the Integrator can go on here too.
+    method.tolerance > 0 (which reruns the problem with more steps) is refused: use integrate.
+    """
+
+    __slots__ = ("_native", "problem", "_raise_on_failure")
+
+    def __init__(self, problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostics=True,
+                 history=None, start="legendre", raise_on_failure=False, **fields):
+        self.problem = _with_fields(_as_problem(problem), fields, "Integrator", _FIELD_SECTIONS,
+                                    _RUN_OPTIONS)
+        self._native = _fracvi.Stepping(self.problem._spec, _run_options(
+            mirror, diagnostics, newton_absolute_tolerance, history, start))
+        self._raise_on_failure = bool(raise_on_failure)
+
+    status = property(lambda self: self._native.status,
+                      doc='"running" while steps remain, then how the run ended')
+    k = property(lambda self: self._native.steps_done, doc="steps done")
+    t = property(lambda self: self._native.time, doc="t_k, the time of the current state")
+    steps = property(lambda self: self._native.steps_total, doc="N, the steps of the grid")
+
+    @property
+    def state(self):
+        """The State (k, t, x, v, p, energy, dissipated, balance) after the last step."""
+        return State(*self._native.state())
+
+    def step(self):
+        """Takes one step (nothing once the run has ended) and returns the status."""
+        return self._checked(self._native.step())
+
+    def run(self, until=None, *, steps=None, observer=None):
+        """Steps to the last grid time <= until, or `steps` more steps, or to the end (neither);
+        observer(state), if given, is called after every step. Returns the status."""
+        target = self._target(until, steps)
+        if observer is not None and not callable(observer):
+            raise TypeError(f"observer = {observer!r} is not callable (a function of a State)")
+        call = None if observer is None else (lambda *state: observer(State(*state)))
+        try:
+            status = self._native.run(target, call)
+        except BaseException as error:  # raised by the observer (or Ctrl-C inside it)
+            error.solution = self._partial(error)
+            raise
+        if self._native.interrupt is not None:
+            interrupt = self._native.interrupt
+            interrupt.solution = self._partial(interrupt)
+            raise interrupt
+        return self._checked(status)
+
+    def solution(self):
+        """A Solution of the steps taken (see the class)."""
+        run = self._native.solution()
+        solution = Solution(run, self.problem)
+        if run.interrupt is not None:  # Ctrl-C during the error estimate's companion runs
+            interrupt = run.interrupt
+            interrupt.solution = solution
+            raise interrupt
+        return solution
+
+    def _partial(self, error):
+        if isinstance(error, KeyboardInterrupt):
+            return Solution(self._native.interrupted_solution(), self.problem)
+        return self.solution()
+
+    def _checked(self, status):
+        if self._raise_on_failure and status not in ("running", "success"):
+            raise IntegrationError(self.solution())
+        return status
+
+    def _target(self, until, steps):
+        """The step run() goes to."""
+        k, total = self._native.steps_done, self._native.steps_total
+        if until is not None and steps is not None:
+            raise TypeError("run() takes until= or steps=, not both")
+        if steps is not None:
+            if isinstance(steps, (bool, np.bool_)) or not isinstance(steps, (int, np.integer)):
+                raise TypeError(f"steps = {steps!r} must be an integer (the number of steps)")
+            if steps < 0:
+                raise ValueError(f"steps = {steps} must not be negative")
+            return min(total, k + int(steps))
+        if until is None:
+            return total
+        if isinstance(until, (bool, np.bool_)) or not isinstance(until, (int, float, np.number)):
+            raise TypeError(f"until = {until!r} must be a number (a time)")
+        p = self.problem
+        position = (float(until) - p.start) / p.step  # in steps
+        if not np.isfinite(position):
+            raise ValueError(f"until = {until!r} must be a finite time")
+        if position > total + 1e-9:
+            raise ValueError(f"until = {until!r} is after the problem's end time time.end = "
+                             f"{p.end!r}: the Integrator's grid ends there")
+        if position < k - 1e-9:
+            raise ValueError(f"until = {until!r} is before the current time t = {self.t!r} "
+                             f"(step {k}): an Integrator only goes forward")
+        return min(total, int(np.floor(position + 1e-9)))
+
+    def __repr__(self):
+        return (f"Integrator(status={self.status!r}, k={self.k}, steps={self.steps}, "
+                f"t={self.t:g}, problem={self.problem.name!r})")
 
 
 def compare(problem, *, steps, schemes=None, reference=None, reference_steps=0,

@@ -8,6 +8,7 @@
 #include <ostream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/integrate/solution.hpp"
@@ -74,6 +75,18 @@ class OutputLock {
 /// summary.json's content: status, message, steps, final state, diagnostics, statistics and the
 /// fully resolved problem (so the run can be reproduced from its output).
 nlohmann::json make_summary(const ProblemSpec& spec, const Solution& solution);
+
+/// Reads back what make_summary() wrote about the solution itself (status, message, steps, the
+/// statistics, the error estimate, the tolerance runs; null numbers are NaN) into `solution`,
+/// whose arrays are left alone: the inverse of make_summary for everything but the final state
+/// and the problem, which trajectory.csv and problem.toml hold. Throws OutputError "<what>:
+/// "<key>" <rule>" for a missing field or one of the wrong type.
+void read_summary(const nlohmann::json& summary, Solution& solution, const std::string& what);
+
+/// The step index of each row the Integrator stores for a run that completed `steps_done` steps
+/// with save_every = s: 0, s, 2s, … below steps_done, and steps_done (trajectory.csv has no
+/// step column; these are its rows).
+std::vector<std::size_t> stored_steps(std::size_t steps_done, std::size_t save_every);
 
 /// Writes trajectory.csv (header `t,x1..xd,v1..vd,energy,dissipated,balance`, one line per stored
 /// row of the solution — every save_every-th step and the last computed one, as the integrator
