@@ -934,10 +934,19 @@ void bind(py::module_& m) {
            })
       .def(
           "write",
-          [](const Run& r, const std::string& directory, const ProblemSpec* spec) {
-            write_run_output(directory, spec ? *spec : r.spec, r.solution);
+          [](const Run& r, const std::string& directory, const ProblemSpec* spec,
+             const py::object& trajectory) {
+            // trajectory(directory), if not None, writes the trajectory in place of the CSV
+            // (fracvi.write(..., format="npz")); what it raises propagates.
+            TrajectoryWriter writer;
+            if (!trajectory.is_none()) {
+              writer = [&trajectory](const std::filesystem::path& dir) {
+                trajectory(dir.string());
+              };
+            }
+            write_run_output(directory, spec ? *spec : r.spec, r.solution, writer);
           },
-          py::arg("directory"), py::arg("spec") = nullptr);
+          py::arg("directory"), py::arg("spec") = nullptr, py::arg("trajectory") = py::none());
 
   // fracvi.sweep: the cases of `fracvi sweep` on local threads; returns (columns, rows) of
   // results.csv in case order, each row its fields as text (the Python side makes NumPy columns).

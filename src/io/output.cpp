@@ -337,18 +337,30 @@ std::vector<std::size_t> stored_steps(std::size_t steps_done, std::size_t save_e
   return steps;
 }
 
-void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
-                      const Solution& s) {
+void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec, const Solution& s,
+                      const TrajectoryWriter& trajectory) {
   prepare_output_directory(dir);
   const OutputLock lock(dir);
   // summary.json goes last and an earlier one first: a directory with a summary.json holds one
   // complete run, whatever was interrupted.
   std::error_code ec;
   std::filesystem::remove(dir / "summary.json", ec);
+  std::filesystem::remove(dir / (trajectory ? "trajectory.csv" : "trajectory.npz"), ec);
+  if (trajectory) {
+    trajectory(dir);
+  } else {
+    write_trajectory_csv(dir / "trajectory.csv", s);
+  }
+  write_file_atomically(dir / "problem.toml",
+                        "# written by " + version_string() + "\n" + to_toml(spec));
+  write_file_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
+}
+
+void write_trajectory_csv(const std::filesystem::path& file, const Solution& s) {
   const Eigen::Index d = s.x.cols();
   // Streamed row by row through one reused buffer: the CSV text is about three times the size of
   // the stored trajectory and is never held in memory as a whole.
-  write_file_atomically(dir / "trajectory.csv", [&s, d](std::ostream& out) {
+  write_file_atomically(file, [&s, d](std::ostream& out) {
     std::string line = "t";
     for (Eigen::Index i = 1; i <= d; ++i) line += ",x" + std::to_string(i);
     for (Eigen::Index i = 1; i <= d; ++i) line += ",v" + std::to_string(i);
@@ -367,9 +379,6 @@ void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
       out << line;
     }
   });
-  write_file_atomically(dir / "problem.toml",
-                        "# written by " + version_string() + "\n" + to_toml(spec));
-  write_file_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
 }
 
 }  // namespace fracvi

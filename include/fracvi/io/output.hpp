@@ -76,6 +76,10 @@ class OutputLock {
 /// fully resolved problem (so the run can be reproduced from its output).
 nlohmann::json make_summary(const ProblemSpec& spec, const Solution& solution);
 
+/// trajectory.csv of write_run_output: `t,x1..xd,v1..vd,energy,dissipated,balance`, one line per
+/// stored row, 17 significant digits (every double reads back to itself), written atomically.
+void write_trajectory_csv(const std::filesystem::path& file, const Solution& solution);
+
 /// Reads back what make_summary() wrote about the solution itself (status, message, steps, the
 /// statistics, the error estimate, the tolerance runs; null numbers are NaN) into `solution`,
 /// whose arrays are left alone: the inverse of make_summary for everything but the final state
@@ -94,7 +98,12 @@ std::vector<std::size_t> stored_steps(std::size_t steps_done, std::size_t save_e
 /// if needed), under an OutputLock of `dir`. An earlier summary.json is removed first, so that a
 /// directory with a summary.json holds one complete run. Files are written to temporaries and
 /// renamed, so a crash never leaves a half-written file under the final name.
+/// `trajectory`, when given, writes the trajectory in another form in place of trajectory.csv
+/// (fracvi.write(..., format="npz") writes trajectory.npz), under the same lock and before
+/// summary.json; the CSV of an earlier run is removed then, as trajectory.npz is when the CSV is
+/// written, so that the directory holds one trajectory.
+using TrajectoryWriter = std::function<void(const std::filesystem::path& dir)>;
 void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
-                      const Solution& solution);
+                      const Solution& solution, const TrajectoryWriter& trajectory = {});
 
 }  // namespace fracvi
