@@ -109,6 +109,14 @@ def test_formats_replace_each_other(runs, tmp_path):
     assert [os.path.basename(p) for p in paths] == ["trajectory.png", "phase.png", "energy.png"]
 
 
+def test_cli_plots_an_npz_directory(runs, cli, tmp_path):
+    pytest.importorskip("matplotlib")
+    fracvi.write(runs["every-7"], tmp_path, format="npz")
+    r = cli("plot", tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert all((tmp_path / f).exists() for f in ("trajectory.png", "phase.png", "energy.png"))
+
+
 def test_load_without_problem_toml_takes_the_summary_problem(runs, tmp_path):
     solution = runs["nonlinear-2d"]
     fracvi.write(solution, tmp_path)
