@@ -400,10 +400,11 @@ class Solution:
         the resolved problem) as a dict; non-finite numbers are None as in the file."""
         return self._run.summary()
 
-    def write(self, directory, *, plot=False):
-        """Writes trajectory.csv, summary.json and problem.toml into `directory` (created if
-        needed), as `fracvi run --out directory` does; with plot=True also its PNG plots."""
-        return write(self, self.problem, directory, plot=plot)
+    def write(self, directory, *, plot=False, format="csv"):
+        """Writes trajectory.csv (format="npz": trajectory.npz), summary.json and problem.toml
+        into `directory` (created if needed), as `fracvi run --out directory` does; with
+        plot=True also its PNG plots. See fracvi.write; fracvi.load reads it back."""
+        return write(self, self.problem, directory, plot=plot, format=format)
 
     def plot(self, directory=None, *, show=None):
         """See fracvi.plot."""
@@ -506,6 +507,8 @@ class Integrator:
     during run() stops it before the next step (within about 0.1 s) and raises KeyboardInterrupt
     with .solution (status "interrupted", the rows so far); the Integrator can go on here too.
     method.tolerance > 0 (which reruns the problem with more steps) is refused: use integrate.
+    The GIL is released while it steps; another thread using the same Integrator meanwhile gets
+    a RuntimeError. It does not pickle.
     """
 
     __slots__ = ("_native", "problem", "_raise_on_failure")
@@ -560,6 +563,10 @@ class Integrator:
             interrupt.solution = solution
             raise interrupt
         return solution
+
+    def __reduce__(self):
+        raise TypeError("a fracvi.Integrator does not pickle (it holds a running C++ "
+                        "integration); pickle its problem, or its solution()")
 
     def _partial(self, error):
         if isinstance(error, KeyboardInterrupt):

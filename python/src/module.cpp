@@ -433,6 +433,7 @@ class Stepping {
 
   /// (k, t, x, v, p, energy, dissipated, balance) now; the arrays are copies, p = M v.
   py::tuple state() {
+    Unlocked::refuse_while(stepping_);
     const StepView view = integrator_->view();
     prepared_.problem.model.mass.multiply(view.v, momentum_);
     return py::make_tuple(view.k, view.t, vector_copy(view.x), vector_copy(view.v),
@@ -441,7 +442,7 @@ class Stepping {
 
   std::string step() {
     {
-      py::gil_scoped_release release;  // compiled formulas: no Python during a step
+      const Unlocked unlocked(stepping_);  // compiled formulas: no Python during a step
       integrator_->step();
     }
     return status();
@@ -460,8 +461,10 @@ class Stepping {
       return integ.status() == Status::kRunning && integ.steps_done() < target;
     };
     if (observer.is_none()) {
-      py::gil_scoped_release release;
-      while (going() && !interrupted()) integ.step();
+      {
+        const Unlocked unlocked(stepping_);
+        while (going() && !interrupted()) integ.step();
+      }
       return status();
     }
     if (integ.steps_done() == 0) observer(*state());
@@ -469,7 +472,7 @@ class Stepping {
       const std::size_t before = integ.steps_done();
       Status s;
       {
-        py::gil_scoped_release release;
+        const Unlocked unlocked(stepping_);
         s = integ.step();
       }
       const bool stepped = integ.steps_done() != before;
@@ -491,7 +494,7 @@ class Stepping {
     Solution s = integrator_->snapshot();
     py::object estimate_interrupt = py::none();
     {
-      py::gil_scoped_release release;
+      const Unlocked unlocked(stepping_);
       if (prepared_.options.mirror && s.status == Status::kSuccess) {
         const auto start = std::chrono::steady_clock::now();
         s.mirror_error = integrator_->mirror_error();
@@ -526,8 +529,38 @@ class Stepping {
   }
 
  private:
+  /// The GIL released while the Integrator steps (or finishes), so that other Python threads
+  /// run meanwhile; one of them that uses this Integrator then gets a RuntimeError instead of a
+  /// data race. The observer runs with the GIL held and the flag down: it may use it.
+  class Unlocked {
+   public:
+    explicit Unlocked(bool& stepping) : stepping_(stepping) {
+      refuse_while(stepping_);
+      stepping_ = true;
+      release_.emplace();
+    }
+    ~Unlocked() {
+      release_.reset();  // the GIL first: the flag is only read and written with it held
+      stepping_ = false;
+    }
+    Unlocked(const Unlocked&) = delete;
+    Unlocked& operator=(const Unlocked&) = delete;
+    static void refuse_while(bool stepping) {
+      if (stepping) {
+        throw std::runtime_error(
+            "this fracvi.Integrator is stepping in another thread; use one Integrator per "
+            "thread");
+      }
+    }
+
+   private:
+    bool& stepping_;
+    std::optional<py::gil_scoped_release> release_;
+  };
+
   PreparedRun prepared_;
   std::unique_ptr<Integrator> integrator_;
+  bool stepping_ = false;
   Eigen::VectorXd momentum_;
   py::object interrupt_ = py::none();  // what a signal handler raised during run()
   py::object finished_ = py::none();   // the Run of the ended integration, once made

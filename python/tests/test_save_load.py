@@ -62,7 +62,7 @@ def runs():
                                   "stopped"])
 def test_write_then_load_is_the_same_solution(runs, tmp_path, name, format):
     solution = runs[name]
-    directory = fracvi.write(solution, tmp_path / "run", format=format)
+    directory = solution.write(tmp_path / "run", format=format)
     files = sorted(f for f in os.listdir(directory) if not f.startswith("."))
     assert files == ["problem.toml", "summary.json", f"trajectory.{format}"]
     loaded = fracvi.load(directory)

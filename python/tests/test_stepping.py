@@ -236,3 +236,34 @@ def test_observer_interrupted_by_ctrl_c():
     with pytest.raises(KeyboardInterrupt) as raised:
         integ.run(observer=observer)
     assert raised.value.solution.status == "interrupted" and raised.value.solution.steps == 5
+
+
+def test_one_thread_at_a_time_and_no_pickling():
+    import pickle
+    long_run = FRACTIONAL.replace("end = 4.0\nsteps = 400", "end = 2000.0\nsteps = 20000000")
+    integ = fracvi.Integrator(long_run, history="fast", every=1000, error_estimate="none",
+                              mirror=False)
+    errors = []
+
+    def other_thread():
+        time.sleep(0.2)
+        for call in (integ.step, lambda: integ.state, integ.run):
+            try:
+                call()
+            except RuntimeError as e:
+                errors.append(str(e))
+        os.kill(os.getpid(), signal.SIGINT)  # ends the long run
+
+    thread = threading.Thread(target=other_thread)
+    thread.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            integ.run()
+    finally:
+        thread.join()
+    assert errors == ["this fracvi.Integrator is stepping in another thread; use one "
+                      "Integrator per thread"] * 3
+    assert integ.status == "running" and integ.k > 0
+    integ.step()  # the run goes on in this thread
+    with pytest.raises(TypeError, match="a fracvi.Integrator does not pickle"):
+        pickle.dumps(integ)
