@@ -720,6 +720,10 @@ class BvpSolution:
         self._run = run
         self.problem = problem
 
+    def __reduce__(self):
+        # Pickled as its fields and arrays (multiprocessing.Pool.map(fracvi.solve_bvp, ...)).
+        return _unpickle_bvp_solution, (self.problem, _fracvi.bvp_state(self._run))
+
     t = _view("t", "t_k = start + k h, shape (N+1,)")
     x = _view("x", "x_k, shape (N+1, d), x[0] = boundary start, x[N] = boundary end")
     y = _view("y", "y_k, shape (N+1, d), y[0] = boundary end, y[N] = boundary start")
@@ -772,6 +776,10 @@ class BvpSolution:
     def __repr__(self):
         return (f"BvpSolution(status={self.status!r}, N={len(self.t) - 1}, dim={self.dim}, "
                 f"residual_norm={self.residual_norm:.3g}, scheme={self.scheme!r})")
+
+
+def _unpickle_bvp_solution(problem, state):
+    return BvpSolution(_fracvi.restore_bvp_run(problem._spec, state), problem)
 
 
 def solve_bvp(problem, *, sum="extended", solver="auto", tolerance=None, raise_on_failure=False,

@@ -346,12 +346,42 @@ py::object make_run(const ProblemSpec& spec, Solution&& solution) {
   return py::cast(std::move(run));
 }
 
+using InputArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+/// Copies arrays of `rows` rows (vectors, or rows × d matrices) into Eigen storage, refusing any
+/// other shape with "<what>: <name> has shape (…); <why> make <rows> rows [of d values]".
+struct RowsReader {
+  py::ssize_t rows, d;
+  std::string what, why;
+
+  [[nodiscard]] Eigen::VectorXd vector(const InputArray& a, const char* name) const {
+    check(a, name, a.ndim() == 1 && a.shape(0) == rows, false);
+    return Eigen::Map<const Eigen::VectorXd>(a.data(), rows);
+  }
+  [[nodiscard]] RowMatrixXd matrix(const InputArray& a, const char* name) const {
+    check(a, name, a.ndim() == 2 && a.shape(0) == rows && a.shape(1) == d, true);
+    return Eigen::Map<const RowMatrixXd>(a.data(), rows, d);
+  }
+
+ private:
+  void check(const InputArray& a, const char* name, bool fits, bool matrix) const {
+    if (fits) return;
+    std::string shape = "(";
+    for (py::ssize_t i = 0; i < a.ndim(); ++i) {
+      shape += (i ? ", " : "") + std::to_string(a.shape(i));
+    }
+    shape += a.ndim() == 1 ? ",)" : ")";
+    throw py::value_error(
+        what + ": " + name + " has shape " + shape + "; " + why + " make " + std::to_string(rows) +
+        " stored rows" +
+        (matrix ? " of the problem's dim = " + std::to_string(d) + " values" : std::string()));
+  }
+};
+
 /// A Run from what summary.json and the trajectory hold (fracvi.load, and unpickling): the
 /// summary's fields through read_summary, the step indices from steps and save_every
 /// (stored_steps), the arrays checked against them and against the problem's dimension. `what`
 /// names the source in messages.
-using InputArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-
 py::object restore_run(const ProblemSpec& spec, py::handle summary, const InputArray& t,
                        const InputArray& x, const InputArray& v, const InputArray& energy,
                        const InputArray& dissipated, const InputArray& balance,
@@ -363,38 +393,15 @@ py::object restore_run(const ProblemSpec& spec, py::handle summary, const InputA
     throw py::value_error(e.what());
   }
   s.step = stored_steps(s.steps_done, s.save_every);
-  const auto rows = static_cast<py::ssize_t>(s.step.size());
-  const auto d = static_cast<py::ssize_t>(spec.dim);
-  const auto shape_text = [](const InputArray& a) {
-    std::string text = "(";
-    for (py::ssize_t i = 0; i < a.ndim(); ++i) text += (i ? ", " : "") + std::to_string(a.shape(i));
-    return text + (a.ndim() == 1 ? ",)" : ")");
-  };
-  const auto check = [&](const InputArray& a, const char* name, bool matrix) {
-    const bool fits = matrix ? a.ndim() == 2 && a.shape(0) == rows && a.shape(1) == d
-                             : a.ndim() == 1 && a.shape(0) == rows;
-    if (!fits) {
-      throw py::value_error(
-          what + ": " + name + " has shape " + shape_text(a) + "; the summary's steps = " +
-          std::to_string(s.steps_done) + " with save_every = " + std::to_string(s.save_every) +
-          " make " + std::to_string(rows) + " stored rows" +
-          (matrix ? " of the problem's dim = " + std::to_string(d) + " values" : std::string()));
-    }
-  };
-  const auto vector = [&](const InputArray& a, const char* name) {
-    check(a, name, false);
-    return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(a.data(), rows));
-  };
-  const auto matrix = [&](const InputArray& a, const char* name) {
-    check(a, name, true);
-    return RowMatrixXd(Eigen::Map<const RowMatrixXd>(a.data(), rows, d));
-  };
-  s.t = vector(t, "t");
-  s.x = matrix(x, "x");
-  s.v = matrix(v, "v");
-  s.energy = vector(energy, "energy");
-  s.dissipated = vector(dissipated, "dissipated");
-  s.balance = vector(balance, "balance");
+  const RowsReader read{static_cast<py::ssize_t>(s.step.size()), spec.dim, what,
+                        "the summary's steps = " + std::to_string(s.steps_done) +
+                            " with save_every = " + std::to_string(s.save_every)};
+  s.t = read.vector(t, "t");
+  s.x = read.matrix(x, "x");
+  s.v = read.matrix(v, "v");
+  s.energy = read.vector(energy, "energy");
+  s.dissipated = read.vector(dissipated, "dissipated");
+  s.balance = read.vector(balance, "balance");
   return make_run(spec, std::move(s));
 }
 
@@ -616,6 +623,51 @@ std::unique_ptr<BvpRun> run_bvp(const ProblemSpec& spec, const std::string& sum,
   // The Lagrangian is a compiled formula: no Python runs during Newton's iterations.
   py::gil_scoped_release release;
   run->solution = solve_bvp(prepared.problem, prepared.options);
+  return run;
+}
+
+/// What a pickled BvpSolution keeps: its fields and arrays (bvp_state), and the BvpRun again.
+py::tuple bvp_state(py::object self) {
+  const BvpSolution& s = self.cast<const BvpRun&>().solution;
+  return py::make_tuple(std::string(to_string(s.status)), s.message, s.residual_norm,
+                        s.residual_floor, s.residual_tolerance, s.residual_history,
+                        s.newton_iterations, s.linear_iterations, s.linear_solver, s.sum,
+                        s.wall_time_seconds, view(self, s.t.data(), s.t.size(), 0),
+                        view(self, s.x.data(), s.x.rows(), s.x.cols()),
+                        view(self, s.y.data(), s.y.rows(), s.y.cols()),
+                        view(self, s.x_residual.data(), s.x_residual.rows(), s.x_residual.cols()),
+                        view(self, s.y_residual.data(), s.y_residual.rows(), s.y_residual.cols()));
+}
+
+std::unique_ptr<BvpRun> restore_bvp_run(const ProblemSpec& spec, const py::tuple& state) {
+  if (state.size() != 16) {
+    throw py::value_error("<pickle>: a BvpSolution's state has 16 items, not " +
+                          std::to_string(state.size()));
+  }
+  auto run = std::make_unique<BvpRun>();
+  run->spec = spec;
+  BvpSolution& s = run->solution;
+  const auto status = state[0].cast<std::string>();
+  const auto parsed = parse_status(status);
+  if (!parsed) throw py::value_error("<pickle>: status = '" + status + "' is not a status");
+  s.status = *parsed;
+  s.message = state[1].cast<std::string>();
+  s.residual_norm = state[2].cast<double>();
+  s.residual_floor = state[3].cast<double>();
+  s.residual_tolerance = state[4].cast<double>();
+  s.residual_history = state[5].cast<std::vector<double>>();
+  s.newton_iterations = state[6].cast<int>();
+  s.linear_iterations = state[7].cast<std::size_t>();
+  s.linear_solver = state[8].cast<std::string>();
+  s.sum = state[9].cast<std::string>();
+  s.wall_time_seconds = state[10].cast<double>();
+  const auto t = state[11].cast<InputArray>();
+  const RowsReader read{t.ndim() == 1 ? t.shape(0) : 0, spec.dim, "<pickle>", "the grid's t"};
+  s.t = read.vector(t, "t");
+  s.x = read.matrix(state[12].cast<InputArray>(), "x");
+  s.y = read.matrix(state[13].cast<InputArray>(), "y");
+  s.x_residual = read.matrix(state[14].cast<InputArray>(), "x_residual");
+  s.y_residual = read.matrix(state[15].cast<InputArray>(), "y_residual");
   return run;
 }
 
@@ -1206,6 +1258,8 @@ void bind(py::module_& m) {
 
   m.def("solve_bvp", &run_bvp, py::arg("spec"), py::arg("sum"), py::arg("solver"),
         py::arg("tolerance"));
+  m.def("bvp_state", &bvp_state, py::arg("run"));
+  m.def("restore_bvp_run", &restore_bvp_run, py::arg("spec"), py::arg("state"));
 
   // --- weights -----------------------------------------------------------------------------
   m.def(

@@ -221,6 +221,25 @@ def test_pool_map_integrate(method):
         assert_same_solution(result, fracvi.integrate(problem), timings=False)
 
 
+def test_boundary_value_solutions_pickle():
+    problems = [fracvi.Problem(dim=1, mass=1.0, damping=r, alpha=0.5, potential="x1^2/2",
+                               boundary=dict(start=[1.0], end=[0.0]), end=1.0, steps=20)
+                for r in (0.2, 0.4)]
+    with multiprocessing.get_context("spawn").Pool(2) as pool:
+        results = pool.map(fracvi.solve_bvp, problems)
+    for problem, result in zip(problems, results):
+        direct = fracvi.solve_bvp(problem)
+        assert result.problem == problem and result.status == direct.status == "success"
+        for name in ("t", "x", "y", "x_residual", "y_residual"):
+            np.testing.assert_array_equal(getattr(result, name), getattr(direct, name))
+        for name in ("message", "residual_norm", "residual_floor", "residual_tolerance",
+                     "residual_history", "newton_iterations", "linear_iterations",
+                     "linear_solver", "sum"):
+            assert getattr(result, name) == getattr(direct, name), name
+        copy = pickle.loads(pickle.dumps(direct))
+        assert copy.wall_time == direct.wall_time and copy.summary() == direct.summary()
+
+
 def test_sparse_mass_and_damping_go_in():
     sparse = pytest.importorskip("scipy.sparse")
     base = dict(alpha=0.5, potential="x1^2/2 + x2^2/2 + x3^4/4", position=[1.0, 0.0, 0.5],
