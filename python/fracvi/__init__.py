@@ -16,6 +16,11 @@ Quick start (examples/python/quickstart.py)::
     fracvi.write(solution, problem, "out")           # the files of `fracvi run`
     fracvi.plot(solution, "out")                     # its three PNG plots
 
+Stepping by hand: fracvi.Integrator(problem, **options) with step(), state, run(until=t,
+observer=f) and solution(). Files: fracvi.load(directory) reads back what `fracvi run` and
+fracvi.write (CSV, or format="npz") wrote. Problem, Solution and BvpSolution pickle
+(multiprocessing.Pool.map(fracvi.integrate, problems)).
+
 Boundary value problems ([boundary], `fracvi bvp`): fracvi.solve_bvp(problem) returns the curves
 x, y of the discrete fractional Euler–Lagrange equations with their residuals.
 
