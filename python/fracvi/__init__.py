@@ -115,7 +115,16 @@ def _sparse_as_plain(value):
     off_diagonal = coo.data[coo.row != coo.col]
     if coo.shape[0] == coo.shape[1] and not np.any(off_diagonal != 0):
         return coo.diagonal().tolist()
+    dense_bytes = 8.0 * coo.shape[0] * coo.shape[1]
+    if dense_bytes > _MAX_DENSE_BYTES:
+        raise ProblemError(
+            f"a scipy.sparse matrix of shape {coo.shape} with off-diagonal entries is stored "
+            f"dense ({dense_bytes / 2**30:.3g} GiB), more than the {_MAX_DENSE_BYTES / 2**30:g} "
+            f"GiB fracvi expands: only a diagonal mass or damping matrix is stored sparse")
     return coo.toarray().tolist()
+
+
+_MAX_DENSE_BYTES = 2.0**30  # a non-diagonal scipy.sparse matrix expanded to d rows, at most
 
 
 def _assignments(overrides, where):

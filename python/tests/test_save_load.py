@@ -258,6 +258,11 @@ def test_sparse_mass_and_damping_go_in():
     dense = fracvi.Problem(dim=3, mass=sparse.csr_matrix(full), damping=0.1, **base)
     assert isinstance(dense.mass, np.ndarray) and np.array_equal(dense.mass, full)
     assert dense == fracvi.Problem(dim=3, mass=full.tolist(), damping=0.1, **base)
+    # A large non-diagonal one is refused before it is expanded (d = 20000: 3 GiB dense).
+    tridiagonal = sparse.diags([np.ones(19999), 2 * np.ones(20000), np.ones(19999)], [-1, 0, 1])
+    with pytest.raises(fracvi.ProblemError, match=r"shape \(20000, 20000\) with off-diagonal "
+                                                  r"entries is stored dense \(2.98 GiB\)"):
+        fracvi.Problem(dim=20000, mass=tridiagonal, **base)
     # Bad matrices get the reader's messages, naming the field.
     with pytest.raises(fracvi.ProblemError, match="model.mass: has 2 entries, model.dim is 3"):
         fracvi.Problem(dim=3, mass=sparse.identity(2), **base)
