@@ -14,21 +14,24 @@ Command add_plot_command(CLI::App& parent) {
   CLI::App* app = parent.add_subcommand(
       "plot",
       "Redraw the plots of an output directory: trajectory.png, phase.png and energy.png (and "
-      "spacetime.png for d > 8) from trajectory.csv and summary.json (fracvi run), or "
+      "spacetime.png for d > 8) from trajectory.csv (or trajectory.npz: fracvi.write) and "
+      "summary.json (fracvi run), or "
       "convergence.png from convergence.csv "
       "(fracvi convergence). Uses matplotlib through Debian's /usr/bin/python3.");
   app->add_option("directory", *dir, "output directory of fracvi run or fracvi convergence")
       ->required();
   auto run = [dir]() {
     const std::filesystem::path d(*dir);
-    const bool is_run = std::filesystem::exists(d / "trajectory.csv") &&
+    const bool is_run = (std::filesystem::exists(d / "trajectory.csv") ||
+                         std::filesystem::exists(d / "trajectory.npz")) &&
                         std::filesystem::exists(d / "summary.json");
     const bool is_study = std::filesystem::exists(d / "convergence.csv") &&
                           std::filesystem::exists(d / "convergence.json");
     if (!is_run && !is_study) {
-      throw UsageError("directory = '" + *dir +
-                       "' holds neither trajectory.csv + summary.json nor convergence.csv + "
-                       "convergence.json");
+      throw UsageError(
+          "directory = '" + *dir +
+          "' holds neither trajectory.csv (or .npz) + summary.json nor convergence.csv + "
+          "convergence.json");
     }
     const std::string note = is_run ? draw_plots(d, false) : draw_convergence_plot(d);
     if (!note.empty()) {

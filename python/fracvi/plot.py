@@ -3,7 +3,7 @@ space-time image.
 
 Used by `fracvi run` / `fracvi plot DIR` (as a script, with Debian's /usr/bin/python3 and
 matplotlib) and by the Python package (fracvi.plot, which also plots a Solution object). As a
-script it reads DIR/trajectory.csv and DIR/summary.json and writes DIR/trajectory.png,
+script it reads DIR/trajectory.csv (or trajectory.npz) and DIR/summary.json and writes DIR/trajectory.png,
 DIR/phase.png and DIR/energy.png (800 x 500 px), and DIR/spacetime.png when d > 8.
 
 Large systems (d > MAX_COMPONENTS, e.g. a chain of 10^5 masses) stay readable: the trajectory
@@ -63,9 +63,11 @@ def _title(summary, what):
             f"scheme {summary.get('method', '')}, N = {summary.get('steps', '?')}")
 
 
-def load(directory):
-    """(data, summary): trajectory.csv as a dict column name -> array and summary.json as a
-    dict. (np.loadtxt, not genfromtxt: a chain of 10^5 masses has 2·10^5 + 4 columns.)"""
+ARRAYS = ("t", "x", "v", "energy", "dissipated", "balance")  # of a trajectory, as load() gives them
+
+
+def load_summary(directory):
+    """summary.json of the run in `directory` as a dict."""
     summary_path = os.path.join(directory, "summary.json")
     with open(summary_path, encoding="utf-8", errors="replace") as f:
         try:
@@ -74,7 +76,32 @@ def load(directory):
             raise MalformedInput(f"{summary_path}, line {e.lineno}: {e.msg}") from None
     if not isinstance(summary, dict):
         raise MalformedInput(f"{summary_path}, line 1: not a JSON object")
-    path = os.path.join(directory, "trajectory.csv")
+    return summary
+
+
+def trajectory_file(directory):
+    """The trajectory of the run in `directory`: trajectory.npz (fracvi.write(..., format="npz"))
+    or trajectory.csv (writing one removes the other)."""
+    npz = os.path.join(directory, "trajectory.npz")
+    return npz if os.path.exists(npz) else os.path.join(directory, "trajectory.csv")
+
+
+def load_trajectory(directory):
+    """The trajectory of the run in `directory` as arrays t, x (rows × d), v, energy, dissipated,
+    balance (and step, from trajectory.npz only). trajectory.csv is read with np.loadtxt, not
+    genfromtxt: a chain of 10^5 masses has 2·10^5 + 4 columns."""
+    path = trajectory_file(directory)
+    if path.endswith(".npz"):
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                arrays = {name: f[name] for name in f.files}
+        except (OSError, ValueError) as e:
+            raise MalformedInput(f"{path}: not a NumPy .npz archive ({e})") from None
+        missing = [name for name in ARRAYS if name not in arrays]
+        if missing:
+            raise MalformedInput(f"{path}: lacks the array(s) {', '.join(missing)} "
+                                 f"({', '.join(ARRAYS)}, step)")
+        return arrays
     with open(path, encoding="utf-8", errors="replace") as f:
         names = f.readline().strip().split(",")
     missing = [c for c in COLUMNS + ("x1", "v1") if c not in names]
@@ -89,18 +116,18 @@ def load(directory):
         raise _locate_bad_line(path, names)
     if values.size == 0:
         values = np.empty((0, len(names)))
-    return {n: values[:, k] for k, n in enumerate(names)}, summary
-
-
-def columns(data):
-    """The columns of trajectory.csv (the dict of load(), or a structured array) as arrays t,
-    x (rows × d), v, energy, dissipated, balance."""
-    names = list(data.keys()) if isinstance(data, dict) else list(data.dtype.names)
+    data = {n: values[:, k] for k, n in enumerate(names)}
     xs = [n for n in names if n.startswith("x")]
     vs = [n for n in names if n.startswith("v")]
     return dict(t=data["t"], x=np.column_stack([data[n] for n in xs]),
                 v=np.column_stack([data[n] for n in vs]), energy=data["energy"],
                 dissipated=data["dissipated"], balance=data["balance"])
+
+
+def load(directory):
+    """(arrays, summary): the trajectory (load_trajectory) and summary.json (a dict)."""
+    summary = load_summary(directory)
+    return load_trajectory(directory), summary
 
 
 def _largest_excursion(x):
@@ -256,8 +283,9 @@ def save(figs, directory):
 def plot_run(directory):
     """Draws the plots of the run in `directory` (trajectory.csv, summary.json) into it. A
     spacetime.png left there by an earlier run with d > 8 is removed when this one has none."""
-    data, summary = load(directory)
-    paths = save(figures(summary=summary, **columns(data)), directory)
+    arrays, summary = load(directory)
+    arrays = {name: arrays[name] for name in ARRAYS}
+    paths = save(figures(summary=summary, **arrays), directory)
     stale = os.path.join(directory, FILES[-1])
     if stale not in paths and os.path.exists(stale):
         os.remove(stale)

@@ -214,18 +214,18 @@ struct Run {
 /// records the signal; the handlers themselves (which raise KeyboardInterrupt) run when the
 /// interpreter gets to them, which it does not during a C++ loop. So the run takes the GIL about
 /// every kInterval of wall time (the clock is read every kStride calls) and runs them
-/// (PyErr_CheckSignals); when one raises, its exception is kept in `run` and the run stops. Once it
-/// has fired it keeps answering true (options.hpp).
-std::function<bool()> python_interrupt(Run& run) {
+/// (PyErr_CheckSignals); when one raises, its exception is kept in `slot` (which must outlive the
+/// function) and the run stops. Once it has fired it keeps answering true (options.hpp).
+std::function<bool()> python_interrupt(py::object& slot) {
   struct State {
-    Run* run;
+    py::object* slot;
     std::chrono::steady_clock::time_point next;
     unsigned calls = 0;
     bool raised = false;
   };
   constexpr auto kInterval = std::chrono::milliseconds(100);
   constexpr unsigned kStride = 16;
-  auto state = std::make_shared<State>(State{&run, std::chrono::steady_clock::now() + kInterval});
+  auto state = std::make_shared<State>(State{&slot, std::chrono::steady_clock::now() + kInterval});
   return [state, kInterval]() {
     if (state->raised) return true;
     if (++state->calls % kStride != 0) return false;
@@ -240,8 +240,7 @@ std::function<bool()> python_interrupt(Run& run) {
     if (traceback != nullptr && value != nullptr) PyException_SetTraceback(value, traceback);
     Py_XDECREF(type);
     Py_XDECREF(traceback);
-    state->run->interrupt =
-        value != nullptr ? py::reinterpret_steal<py::object>(value) : py::none();
+    *state->slot = value != nullptr ? py::reinterpret_steal<py::object>(value) : py::none();
     state->raised = true;
     return true;
   };
@@ -278,22 +277,32 @@ StartValue parse_start(const std::string& name) {
   throw py::value_error("start = '" + name + "' must be 'legendre' or 'euler'");
 }
 
-std::unique_ptr<Run> run_problem(const ProblemSpec& spec, bool mirror, bool diagnostics,
-                                 double absolute_tolerance, const std::string& history,
-                                 const std::string& start) {
+/// The run options of fracvi.integrate and fracvi.Integrator (the keywords that are not fields of
+/// the problem).
+struct RunOptions {
+  bool mirror = true;
+  bool diagnostics = true;
+  double absolute_tolerance = 0.0;
+  std::string history;  // "" keeps the problem's
+  std::string start = "legendre";
+};
+
+/// prepare_run (the CLI's checks and messages) with the run options applied and validated.
+/// `caller` names the Python function in messages.
+PreparedRun prepare_python_run(const ProblemSpec& spec, const RunOptions& run,
+                               const std::string& caller) {
   PreparedRun prepared;
   try {
     prepared = prepare_run(spec);
   } catch (const ProblemFileError& e) {
     throw ProblemError(e.what());
   }
-  const InitialValueProblem& problem = prepared.problem;
-  IntegratorOptions options = prepared.options;
-  options.mirror = mirror;
-  options.diagnostics = diagnostics;
-  options.newton.absolute_tolerance = absolute_tolerance;
-  if (const auto kind = parse_history(history)) options.history = *kind;
-  options.start = parse_start(start);
+  IntegratorOptions& options = prepared.options;
+  options.mirror = run.mirror;
+  options.diagnostics = run.diagnostics;
+  options.newton.absolute_tolerance = run.absolute_tolerance;
+  if (const auto kind = parse_history(run.history)) options.history = *kind;
+  options.start = parse_start(run.start);
   try {
     validate(options);
   } catch (const ValidationError& e) {
@@ -302,12 +311,19 @@ std::unique_ptr<Run> run_problem(const ProblemSpec& spec, bool mirror, bool diag
   if (prepared.spec.checkpoint_every > 0) {
     throw ProblemError(spec.source + ": output.checkpoint_every = " +
                        std::to_string(prepared.spec.checkpoint_every) +
-                       ": checkpoints are written by `fracvi run` into its output directory; "
-                       "fracvi.integrate writes none (set it to 0)");
+                       ": checkpoints are written by `fracvi run` into its output directory; " +
+                       caller + " writes none (set it to 0)");
   }
+  return prepared;
+}
+
+std::unique_ptr<Run> run_problem(const ProblemSpec& spec, const RunOptions& run_options) {
+  PreparedRun prepared = prepare_python_run(spec, run_options, "fracvi.integrate");
+  const InitialValueProblem& problem = prepared.problem;
+  IntegratorOptions& options = prepared.options;
   auto run = std::make_unique<Run>();
   run->spec = spec;
-  options.interrupt = python_interrupt(*run);
+  options.interrupt = python_interrupt(run->interrupt);
   // The potential and forcing are compiled formulas: no Python runs during the integration
   // (except the signal handlers, python_interrupt).
   py::gil_scoped_release release;
@@ -321,6 +337,241 @@ std::unique_ptr<Run> run_problem(const ProblemSpec& spec, bool mirror, bool diag
   }
   return run;
 }
+
+/// A Run from a Solution and the problem it solves, as the Python object fracvi.Solution wraps.
+py::object make_run(const ProblemSpec& spec, Solution&& solution) {
+  auto run = std::make_unique<Run>();
+  run->spec = spec;
+  run->solution = std::move(solution);
+  return py::cast(std::move(run));
+}
+
+using InputArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+/// Copies arrays of `rows` rows (vectors, or rows × d matrices) into Eigen storage, refusing any
+/// other shape with "<what>: <name> has shape (…); <why> make <rows> rows [of d values]".
+struct RowsReader {
+  py::ssize_t rows, d;
+  std::string what, why;
+
+  [[nodiscard]] Eigen::VectorXd vector(const InputArray& a, const char* name) const {
+    check(a, name, a.ndim() == 1 && a.shape(0) == rows, false);
+    return Eigen::Map<const Eigen::VectorXd>(a.data(), rows);
+  }
+  [[nodiscard]] RowMatrixXd matrix(const InputArray& a, const char* name) const {
+    check(a, name, a.ndim() == 2 && a.shape(0) == rows && a.shape(1) == d, true);
+    return Eigen::Map<const RowMatrixXd>(a.data(), rows, d);
+  }
+
+ private:
+  void check(const InputArray& a, const char* name, bool fits, bool matrix) const {
+    if (fits) return;
+    std::string shape = "(";
+    for (py::ssize_t i = 0; i < a.ndim(); ++i) {
+      shape += (i ? ", " : "") + std::to_string(a.shape(i));
+    }
+    shape += a.ndim() == 1 ? ",)" : ")";
+    throw py::value_error(
+        what + ": " + name + " has shape " + shape + "; " + why + " make " + std::to_string(rows) +
+        " stored rows" +
+        (matrix ? " of the problem's dim = " + std::to_string(d) + " values" : std::string()));
+  }
+};
+
+/// A Run from what summary.json and the trajectory hold (fracvi.load, and unpickling): the
+/// summary's fields through read_summary, the step indices from steps and save_every
+/// (stored_steps), the arrays checked against them and against the problem's dimension. `what`
+/// names the source in messages.
+py::object restore_run(const ProblemSpec& spec, py::handle summary, const InputArray& t,
+                       const InputArray& x, const InputArray& v, const InputArray& energy,
+                       const InputArray& dissipated, const InputArray& balance,
+                       const std::string& what) {
+  Solution s;
+  try {
+    read_summary(from_python(summary, "", what), s, what);
+  } catch (const OutputError& e) {
+    throw py::value_error(e.what());
+  }
+  s.step = stored_steps(s.steps_done, s.save_every);
+  const RowsReader read{static_cast<py::ssize_t>(s.step.size()), spec.dim, what,
+                        "the summary's steps = " + std::to_string(s.steps_done) +
+                            " with save_every = " + std::to_string(s.save_every)};
+  s.t = read.vector(t, "t");
+  s.x = read.matrix(x, "x");
+  s.v = read.matrix(v, "v");
+  s.energy = read.vector(energy, "energy");
+  s.dissipated = read.vector(dissipated, "dissipated");
+  s.balance = read.vector(balance, "balance");
+  return make_run(spec, std::move(s));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stepping by hand (fracvi.Integrator).
+
+/// A C++ Integrator driven from Python, with the problem it solves. It has no interrupt hook of
+/// its own: run() looks at Python's signal handlers between steps (python_interrupt), so Ctrl-C
+/// ends the call, not the integration, which run() or step() continue.
+class Stepping {
+ public:
+  Stepping(const ProblemSpec& spec, const RunOptions& run_options)
+      : prepared_(prepare_python_run(spec, run_options, "fracvi.Integrator")) {
+    if (prepared_.options.tolerance > 0.0) {
+      throw ProblemError(spec.source + ": method.tolerance = " +
+                         repr_text(py::float_(prepared_.options.tolerance)) +
+                         ": it doubles time.steps and reruns the problem until the error "
+                         "estimate meets it, and an Integrator steps one grid (set it to 0, or "
+                         "use fracvi.integrate)");
+    }
+    prepared_.spec = spec;
+    try {
+      integrator_ =
+          std::make_unique<Integrator>(prepared_.problem, prepared_.method, prepared_.options);
+    } catch (const ValidationError& e) {
+      throw ProblemError(e.what());
+    }
+    momentum_.resize(prepared_.problem.model.dimension());
+  }
+
+  [[nodiscard]] std::string status() const { return std::string(to_string(integrator_->status())); }
+  [[nodiscard]] std::size_t steps_done() const { return integrator_->steps_done(); }
+  [[nodiscard]] std::size_t steps_total() const { return integrator_->steps_total(); }
+  [[nodiscard]] double time() const { return integrator_->time(); }
+  [[nodiscard]] const py::object& interrupt() const { return interrupt_; }
+
+  /// (k, t, x, v, p, energy, dissipated, balance) now; the arrays are copies, p = M v.
+  py::tuple state() {
+    Unlocked::refuse_while(stepping_);
+    const StepView view = integrator_->view();
+    prepared_.problem.model.mass.multiply(view.v, momentum_);
+    return py::make_tuple(view.k, view.t, vector_copy(view.x), vector_copy(view.v),
+                          vector_copy(momentum_), view.energy, view.dissipated, view.balance);
+  }
+
+  std::string step() {
+    {
+      const Unlocked unlocked(stepping_);  // compiled formulas: no Python during a step
+      integrator_->step();
+    }
+    return status();
+  }
+
+  /// Steps until step `target` (at most) is done or the run ends. observer(k, t, x, v, p, energy,
+  /// dissipated, balance), if not None, is called for the current state when no step has been
+  /// taken yet, then after every completed step; what it raises propagates (the integration stays
+  /// at the last completed step). A signal handler that raises (Ctrl-C) stops the loop before the
+  /// next step, its exception kept in interrupt().
+  std::string run(std::size_t target, const py::object& observer) {
+    interrupt_ = py::none();
+    const auto interrupted = python_interrupt(interrupt_);
+    Integrator& integ = *integrator_;
+    const auto going = [&] {
+      return integ.status() == Status::kRunning && integ.steps_done() < target;
+    };
+    if (observer.is_none()) {
+      {
+        const Unlocked unlocked(stepping_);
+        while (going() && !interrupted()) integ.step();
+      }
+      return status();
+    }
+    if (integ.steps_done() == 0) observer(*state());
+    while (going() && !interrupted()) {
+      const std::size_t before = integ.steps_done();
+      Status s;
+      {
+        const Unlocked unlocked(stepping_);
+        s = integ.step();
+      }
+      const bool stepped = integ.steps_done() != before;
+      if (stepped && (s == Status::kRunning || s == Status::kSuccess || s == Status::kInaccurate)) {
+        observer(*state());
+      }
+    }
+    return status();
+  }
+
+  /// The solution so far (Integrator::snapshot) as a Run. Once the integration has ended, the
+  /// finished solution, made once: with the mirror run (if enabled and the run succeeded) and the
+  /// error estimate, as fracvi.integrate returns it.
+  py::object solution() {
+    if (integrator_->status() == Status::kRunning) {
+      return make_run(prepared_.spec, integrator_->snapshot());
+    }
+    if (!finished_.is_none()) return finished_;
+    Solution s = integrator_->snapshot();
+    py::object estimate_interrupt = py::none();
+    {
+      const Unlocked unlocked(stepping_);
+      if (prepared_.options.mirror && s.status == Status::kSuccess) {
+        const auto start = std::chrono::steady_clock::now();
+        s.mirror_error = integrator_->mirror_error();
+        s.wall_time_seconds +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      }
+      IntegratorOptions options = prepared_.options;
+      options.interrupt = python_interrupt(estimate_interrupt);
+      estimate_error(prepared_.problem, prepared_.method, options, s);
+    }
+    py::object run = make_run(prepared_.spec, std::move(s));
+    if (!estimate_interrupt.is_none()) {
+      run.cast<Run&>().interrupt = estimate_interrupt;  // not cached: asked again, estimated again
+      return run;
+    }
+    finished_ = run;
+    return finished_;
+  }
+
+  /// The solution so far with the status "interrupted": what a KeyboardInterrupt during run()
+  /// carries. The Integrator itself goes on.
+  py::object interrupted_solution() {
+    Solution s = integrator_->snapshot();
+    if (s.status == Status::kRunning) {
+      s.status = Status::kInterrupted;
+      s.message = "interrupted after step " + std::to_string(s.steps_done) + " of " +
+                  std::to_string(integrator_->steps_total()) +
+                  " (t = " + repr_text(py::float_(integrator_->time())) +
+                  "); the Integrator can go on (run() or step())";
+    }
+    return make_run(prepared_.spec, std::move(s));
+  }
+
+ private:
+  /// The GIL released while the Integrator steps (or finishes), so that other Python threads
+  /// run meanwhile; one of them that uses this Integrator then gets a RuntimeError instead of a
+  /// data race. The observer runs with the GIL held and the flag down: it may use it.
+  class Unlocked {
+   public:
+    explicit Unlocked(bool& stepping) : stepping_(stepping) {
+      refuse_while(stepping_);
+      stepping_ = true;
+      release_.emplace();
+    }
+    ~Unlocked() {
+      release_.reset();  // the GIL first: the flag is only read and written with it held
+      stepping_ = false;
+    }
+    Unlocked(const Unlocked&) = delete;
+    Unlocked& operator=(const Unlocked&) = delete;
+    static void refuse_while(bool stepping) {
+      if (stepping) {
+        throw std::runtime_error(
+            "this fracvi.Integrator is stepping in another thread; use one Integrator per "
+            "thread");
+      }
+    }
+
+   private:
+    bool& stepping_;
+    std::optional<py::gil_scoped_release> release_;
+  };
+
+  PreparedRun prepared_;
+  std::unique_ptr<Integrator> integrator_;
+  bool stepping_ = false;
+  Eigen::VectorXd momentum_;
+  py::object interrupt_ = py::none();  // what a signal handler raised during run()
+  py::object finished_ = py::none();   // the Run of the ended integration, once made
+};
 
 // ---------------------------------------------------------------------------------------------
 // Boundary value problems (`fracvi bvp`).
@@ -375,6 +626,51 @@ std::unique_ptr<BvpRun> run_bvp(const ProblemSpec& spec, const std::string& sum,
   return run;
 }
 
+/// What a pickled BvpSolution keeps: its fields and arrays (bvp_state), and the BvpRun again.
+py::tuple bvp_state(py::object self) {
+  const BvpSolution& s = self.cast<const BvpRun&>().solution;
+  return py::make_tuple(std::string(to_string(s.status)), s.message, s.residual_norm,
+                        s.residual_floor, s.residual_tolerance, s.residual_history,
+                        s.newton_iterations, s.linear_iterations, s.linear_solver, s.sum,
+                        s.wall_time_seconds, view(self, s.t.data(), s.t.size(), 0),
+                        view(self, s.x.data(), s.x.rows(), s.x.cols()),
+                        view(self, s.y.data(), s.y.rows(), s.y.cols()),
+                        view(self, s.x_residual.data(), s.x_residual.rows(), s.x_residual.cols()),
+                        view(self, s.y_residual.data(), s.y_residual.rows(), s.y_residual.cols()));
+}
+
+std::unique_ptr<BvpRun> restore_bvp_run(const ProblemSpec& spec, const py::tuple& state) {
+  if (state.size() != 16) {
+    throw py::value_error("<pickle>: a BvpSolution's state has 16 items, not " +
+                          std::to_string(state.size()));
+  }
+  auto run = std::make_unique<BvpRun>();
+  run->spec = spec;
+  BvpSolution& s = run->solution;
+  const auto status = state[0].cast<std::string>();
+  const auto parsed = parse_status(status);
+  if (!parsed) throw py::value_error("<pickle>: status = '" + status + "' is not a status");
+  s.status = *parsed;
+  s.message = state[1].cast<std::string>();
+  s.residual_norm = state[2].cast<double>();
+  s.residual_floor = state[3].cast<double>();
+  s.residual_tolerance = state[4].cast<double>();
+  s.residual_history = state[5].cast<std::vector<double>>();
+  s.newton_iterations = state[6].cast<int>();
+  s.linear_iterations = state[7].cast<std::size_t>();
+  s.linear_solver = state[8].cast<std::string>();
+  s.sum = state[9].cast<std::string>();
+  s.wall_time_seconds = state[10].cast<double>();
+  const auto t = state[11].cast<InputArray>();
+  const RowsReader read{t.ndim() == 1 ? t.shape(0) : 0, spec.dim, "<pickle>", "the grid's t"};
+  s.t = read.vector(t, "t");
+  s.x = read.matrix(state[12].cast<InputArray>(), "x");
+  s.y = read.matrix(state[13].cast<InputArray>(), "y");
+  s.x_residual = read.matrix(state[14].cast<InputArray>(), "x_residual");
+  s.y_residual = read.matrix(state[15].cast<InputArray>(), "y_residual");
+  return run;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Arrays owned by C++ buffers.
 
@@ -396,8 +692,6 @@ py::array adopt_vector(std::vector<double>&& v) {
 
 // ---------------------------------------------------------------------------------------------
 // Sequences (operators.hpp).
-
-using InputArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
 
 Sequence to_sequence(const InputArray& z, const char* op) {
   if (z.ndim() == 1) return Eigen::Map<const Eigen::MatrixXd>(z.data(), 1, z.shape(0));
@@ -709,12 +1003,35 @@ void bind(py::module_& m) {
             return to_python(make_summary(spec ? *spec : r.spec, r.solution));
           },
           py::arg("spec") = nullptr)
+      .def("summary_and_columns",
+           [](py::object self) {
+             // What pickling keeps (restore_run makes the Run again): summary.json's content and
+             // the columns of trajectory.csv, as views (pickle copies them).
+             const Run& r = self.cast<const Run&>();
+             const Solution& s = r.solution;
+             return py::make_tuple(to_python(make_summary(r.spec, s)),
+                                   view(self, s.t.data(), s.t.size(), 0),
+                                   view(self, s.x.data(), s.x.rows(), s.x.cols()),
+                                   view(self, s.v.data(), s.v.rows(), s.v.cols()),
+                                   view(self, s.energy.data(), s.energy.size(), 0),
+                                   view(self, s.dissipated.data(), s.dissipated.size(), 0),
+                                   view(self, s.balance.data(), s.balance.size(), 0));
+           })
       .def(
           "write",
-          [](const Run& r, const std::string& directory, const ProblemSpec* spec) {
-            write_run_output(directory, spec ? *spec : r.spec, r.solution);
+          [](const Run& r, const std::string& directory, const ProblemSpec* spec,
+             const py::object& trajectory) {
+            // trajectory(directory), if not None, writes the trajectory in place of the CSV
+            // (fracvi.write(..., format="npz")); what it raises propagates.
+            TrajectoryWriter writer;
+            if (!trajectory.is_none()) {
+              writer = [&trajectory](const std::filesystem::path& dir) {
+                trajectory(dir.string());
+              };
+            }
+            write_run_output(directory, spec ? *spec : r.spec, r.solution, writer);
           },
-          py::arg("directory"), py::arg("spec") = nullptr);
+          py::arg("directory"), py::arg("spec") = nullptr, py::arg("trajectory") = py::none());
 
   // fracvi.sweep: the cases of `fracvi sweep` on local threads; returns (columns, rows) of
   // results.csv in case order, each row its fields as text (the Python side makes NumPy columns).
@@ -770,8 +1087,31 @@ void bind(py::module_& m) {
       py::arg("document"), py::arg("source"), py::arg("directory"), py::arg("jobs"), py::arg("out"),
       py::arg("resume"));
 
-  m.def("integrate", &run_problem, py::arg("spec"), py::arg("mirror"), py::arg("diagnostics"),
-        py::arg("absolute_tolerance"), py::arg("history"), py::arg("start"));
+  py::class_<RunOptions>(m, "RunOptions", "The run options of integrate() and Integrator.")
+      .def(py::init([](bool mirror, bool diagnostics, double absolute_tolerance,
+                       const std::string& history, const std::string& start) {
+             return RunOptions{mirror, diagnostics, absolute_tolerance, history, start};
+           }),
+           py::arg("mirror"), py::arg("diagnostics"), py::arg("absolute_tolerance"),
+           py::arg("history"), py::arg("start"));
+
+  m.def("integrate", &run_problem, py::arg("spec"), py::arg("options"));
+  m.def("restore_run", &restore_run, py::arg("spec"), py::arg("summary"), py::arg("t"),
+        py::arg("x"), py::arg("v"), py::arg("energy"), py::arg("dissipated"), py::arg("balance"),
+        py::arg("what"));
+
+  py::class_<Stepping>(m, "Stepping", "A C++ Integrator stepped from Python (fracvi.Integrator).")
+      .def(py::init<const ProblemSpec&, const RunOptions&>(), py::arg("spec"), py::arg("options"))
+      .def_property_readonly("status", &Stepping::status)
+      .def_property_readonly("steps_done", &Stepping::steps_done)
+      .def_property_readonly("steps_total", &Stepping::steps_total)
+      .def_property_readonly("time", &Stepping::time)
+      .def_property_readonly("interrupt", &Stepping::interrupt)
+      .def("state", &Stepping::state)
+      .def("step", &Stepping::step)
+      .def("run", &Stepping::run, py::arg("target"), py::arg("observer"))
+      .def("solution", &Stepping::solution)
+      .def("interrupted_solution", &Stepping::interrupted_solution);
 
   // --- boundary value problems ---------------------------------------------------------------
   py::class_<BvpRun>(m, "BvpRun",
@@ -918,6 +1258,8 @@ void bind(py::module_& m) {
 
   m.def("solve_bvp", &run_bvp, py::arg("spec"), py::arg("sum"), py::arg("solver"),
         py::arg("tolerance"));
+  m.def("bvp_state", &bvp_state, py::arg("run"));
+  m.def("restore_bvp_run", &restore_bvp_run, py::arg("spec"), py::arg("state"));
 
   // --- weights -----------------------------------------------------------------------------
   m.def(

@@ -40,6 +40,15 @@ std::string_view to_string(Status status) {
   return "unknown";
 }
 
+std::optional<Status> parse_status(std::string_view name) {
+  for (const Status s :
+       {Status::kRunning, Status::kSuccess, Status::kNewtonFailure, Status::kNonFinite,
+        Status::kCallbackError, Status::kUnstable, Status::kInaccurate, Status::kInterrupted}) {
+    if (to_string(s) == name) return s;
+  }
+  return std::nullopt;
+}
+
 std::size_t physical_memory_bytes() {
   const long pages = sysconf(_SC_PHYS_PAGES);
   const long page_size = sysconf(_SC_PAGE_SIZE);

@@ -48,6 +48,7 @@ int precedence(const Node& n) {
 
 std::string format_number(double v) {
   if (v == std::numbers::pi) return "pi";
+  if (v == std::numbers::e) return "e";
   char buf[64];
   const auto r = std::to_chars(buf, buf + sizeof buf, v);  // shortest round-trip form
   return std::string(buf, r.ptr);
@@ -80,6 +81,10 @@ class Printer {
         out += function_name(n.op);
         out += '(';
         print(n.a, out);
+        if (is_binary(n.op)) {
+          out += ", ";
+          print(n.b, out);
+        }
         out += ')';
     }
   }

@@ -16,10 +16,15 @@ struct FunctionEntry {
 };
 
 constexpr FunctionEntry kFunctions[] = {
-    {"sin", Op::kSin},   {"cos", Op::kCos},   {"tan", Op::kTan},   {"exp", Op::kExp},
-    {"log", Op::kLog},   {"sqrt", Op::kSqrt}, {"abs", Op::kAbs},   {"sign", Op::kSign},
-    {"sinh", Op::kSinh}, {"cosh", Op::kCosh}, {"tanh", Op::kTanh}, {"atan", Op::kAtan},
-    {"pow", Op::kPow},
+    {"sin", Op::kSin},     {"cos", Op::kCos},
+    {"tan", Op::kTan},     {"exp", Op::kExp},
+    {"log", Op::kLog},     {"sqrt", Op::kSqrt},
+    {"abs", Op::kAbs},     {"sign", Op::kSign},
+    {"sinh", Op::kSinh},   {"cosh", Op::kCosh},
+    {"tanh", Op::kTanh},   {"atan", Op::kAtan},
+    {"floor", Op::kFloor}, {"heaviside", Op::kHeaviside},
+    {"pow", Op::kPow},     {"min", Op::kMin},
+    {"max", Op::kMax},     {"atan2", Op::kAtan2},
 };
 
 constexpr std::int32_t kNoVariable = std::numeric_limits<std::int32_t>::max();
@@ -233,6 +238,14 @@ NodeId Builder::function(Op op, NodeId a) {
   return intern(op, a, kNoNode);
 }
 
+NodeId Builder::function(Op op, NodeId a, NodeId b) {
+  if (is_constant(a) && is_constant(b)) {
+    return constant(apply_binary(op, node(a).value, node(b).value));
+  }
+  if ((op == Op::kMin || op == Op::kMax) && a == b) return a;
+  return intern(op, a, b);
+}
+
 NodeId Builder::derivative_rule(NodeId id, NodeId da, NodeId db, std::int32_t var) {
   const Node n = node(id);
   const NodeId a = n.a, b = n.b;
@@ -267,6 +280,18 @@ NodeId Builder::derivative_rule(NodeId id, NodeId da, NodeId db, std::int32_t va
     case Op::kCosh: return mul(function(Op::kSinh, a), da);
     case Op::kTanh: return mul(sub(constant(1.0), pow_int(id, 2)), da);
     case Op::kAtan: return div(da, add(constant(1.0), pow_int(a, 2)));
+    case Op::kFloor:
+    case Op::kHeaviside: return constant(0.0);  // piecewise constant; the jumps are not seen
+    case Op::kMin:
+    case Op::kMax: {
+      // The derivative of the selected argument, and at a tie (a = b) the mean of the two:
+      // min' = (a' + b')/2 − sign(a − b)(a' − b')/2, max' with + (linear in da, db).
+      const NodeId mean = mul(constant(0.5), add(da, db));
+      const NodeId half_gap = mul(mul(constant(0.5), function(Op::kSign, sub(a, b))), sub(da, db));
+      return n.op == Op::kMin ? sub(mean, half_gap) : add(mean, half_gap);
+    }
+    case Op::kAtan2:  // atan2(a, b), the angle of (b, a): (b a' − a b')/(a² + b²)
+      return div(sub(mul(b, da), mul(a, db)), add(pow_int(a, 2), pow_int(b, 2)));
   }
   return constant(std::nan(""));
 }

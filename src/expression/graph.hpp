@@ -24,7 +24,10 @@ enum class Op : std::uint8_t {
   kSub,
   kMul,
   kDiv,
-  kPow,     // a^b, general (exp/log rule)
+  kPow,  // a^b, general (exp/log rule)
+  kMin,  // min(a, b), max(a, b), atan2(a, b): binary functions called by name
+  kMax,
+  kAtan2,
   kNeg,     // unary ops: a
   kPowInt,  // a^n with n = b, a small integer
   kSin,
@@ -39,10 +42,12 @@ enum class Op : std::uint8_t {
   kCosh,
   kTanh,
   kAtan,
+  kFloor,
+  kHeaviside,
 };
 
 inline bool is_binary(Op op) {
-  return op >= Op::kAdd && op <= Op::kPow;
+  return op >= Op::kAdd && op <= Op::kAtan2;
 }
 inline bool is_unary(Op op) {
   return op >= Op::kNeg;
@@ -72,7 +77,8 @@ struct Node {
 inline constexpr std::int64_t kMaxIntExponent = 1 << 20;
 
 std::string_view function_name(Op op);
-/// kNeg..kAtan for a built-in unary function name, kPow for "pow", kConst if unknown.
+/// kSin..kHeaviside for a built-in unary function name, kPow, kMin, kMax or kAtan2 for a binary
+/// one ("pow", "min", "max", "atan2"), kConst if unknown.
 Op function_by_name(std::string_view name);
 /// Names of all functions, for error messages.
 const std::vector<std::string>& function_names();
@@ -106,6 +112,20 @@ inline double sign(double x) {
   return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : x);
 }
 
+/// The unit step: 0 for x < 0, 1/2 at ±0 (the mean of the two sides), 1 for x > 0, NaN for NaN.
+inline double heaviside(double x) {
+  return x > 0.0 ? 1.0 : (x < 0.0 ? 0.0 : (x == 0.0 ? 0.5 : x));
+}
+
+/// min and max that keep a NaN (std::min would drop one in its second argument), so that a NaN
+/// reaches the integrator's non-finite check.
+inline double nan_min(double a, double b) {
+  return std::isnan(b) ? b : (b < a ? b : a);
+}
+inline double nan_max(double a, double b) {
+  return std::isnan(b) ? b : (b > a ? b : a);
+}
+
 inline double apply_unary(Op op, double x, std::int32_t n) {
   switch (op) {
     case Op::kNeg: return -x;
@@ -122,6 +142,8 @@ inline double apply_unary(Op op, double x, std::int32_t n) {
     case Op::kCosh: return std::cosh(x);
     case Op::kTanh: return std::tanh(x);
     case Op::kAtan: return std::atan(x);
+    case Op::kFloor: return std::floor(x);
+    case Op::kHeaviside: return heaviside(x);
     default: return std::nan("");
   }
 }
@@ -133,6 +155,9 @@ inline double apply_binary(Op op, double x, double y) {
     case Op::kMul: return x * y;
     case Op::kDiv: return x / y;
     case Op::kPow: return std::pow(x, y);
+    case Op::kMin: return nan_min(x, y);
+    case Op::kMax: return nan_max(x, y);
+    case Op::kAtan2: return std::atan2(x, y);
     default: return std::nan("");
   }
 }
@@ -156,8 +181,10 @@ class Builder {
   NodeId pow(NodeId a, NodeId b);
   NodeId pow_int(NodeId a, std::int64_t n);
   NodeId neg(NodeId a);
-  /// A named unary function (kSin..kAtan).
+  /// A named unary function (kSin..kHeaviside).
   NodeId function(Op op, NodeId a);
+  /// A named binary function: kMin, kMax or kAtan2 (pow is pow()).
+  NodeId function(Op op, NodeId a, NodeId b);
 
   /// ∂f/∂x_var by forward accumulation, built iteratively (no recursion, so deep sums are
   /// fine) over the nodes whose dependence interval contains var.

@@ -370,9 +370,10 @@ class Parser {
     if (tok_.kind == Tok::kLParen) return call(t, id, var != index_.end());
     if (var != index_.end()) return builder_.variable(var->second);
     if (id == "pi") return builder_.constant(std::numbers::pi);
-    if (function_by_name(id) != Op::kConst)
+    if (id == "e") return builder_.constant(std::numbers::e);
+    if (const Op op = function_by_name(id); op != Op::kConst)
       fail("function '" + std::string(id) + "' needs an argument list, e.g. " + std::string(id) +
-               (id == "pow" ? "(x, 2)" : "(x)"),
+               (is_binary(op) ? "(x, 2)" : "(x)"),
            t.begin);
     std::string reason =
         "unknown variable '" + std::string(id) + "' (" +
@@ -384,7 +385,7 @@ class Parser {
   NodeId call(const Token& t, std::string_view id, bool is_variable) {
     const Op op = function_by_name(id);
     if (op == Op::kConst) {
-      if (is_variable || id == "pi")
+      if (is_variable || id == "pi" || id == "e")
         fail("'" + std::string(id) + "' is a " + (is_variable ? "variable" : "constant") +
                  ", not a function (missing '*' before '('?)",
              t.begin);
@@ -413,13 +414,14 @@ class Parser {
            tok_.begin);
     }
     advance();
-    const std::size_t arity = op == Op::kPow ? 2 : 1;
+    const std::size_t arity = is_binary(op) ? 2 : 1;
     if (args.size() != arity)
       fail("function '" + std::string(id) + "' takes " + std::to_string(arity) + " argument" +
                (arity == 1 ? "" : "s") + " but was given " + std::to_string(args.size()),
            t.begin);
-    return finite(op == Op::kPow ? builder_.pow(args[0], args[1]) : builder_.function(op, args[0]),
-                  t.begin);
+    if (op == Op::kPow) return finite(builder_.pow(args[0], args[1]), t.begin);
+    if (is_binary(op)) return finite(builder_.function(op, args[0], args[1]), t.begin);
+    return finite(builder_.function(op, args[0]), t.begin);
   }
 
   std::string_view text_;
@@ -442,7 +444,7 @@ void validate_variable_names(const std::vector<std::string>& variables) {
     if (!is_identifier(v))
       throw std::invalid_argument("variable name '" + v +
                                   "' is not an identifier ([A-Za-z_][A-Za-z0-9_]*)");
-    if (v == "pi" || function_by_name(v) != Op::kConst)
+    if (v == "pi" || v == "e" || function_by_name(v) != Op::kConst)
       throw std::invalid_argument("variable name '" + v + "' is reserved (constant or function)");
     if (!seen.insert(v).second)
       throw std::invalid_argument("variable name '" + v + "' is given twice");

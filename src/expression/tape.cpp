@@ -75,6 +75,9 @@ void run(const Program& program, std::span<const Instruction> code, const double
       case Op::kMul: r = x * s[in.b]; break;
       case Op::kDiv: r = x / s[in.b]; break;
       case Op::kPow: r = std::pow(x, s[in.b]); break;
+      case Op::kMin: r = nan_min(x, s[in.b]); break;
+      case Op::kMax: r = nan_max(x, s[in.b]); break;
+      case Op::kAtan2: r = std::atan2(x, s[in.b]); break;
       case Op::kNeg: r = -x; break;
       case Op::kPowInt: r = ipow(x, in.b); break;
       case Op::kSin: r = std::sin(x); break;
@@ -89,6 +92,8 @@ void run(const Program& program, std::span<const Instruction> code, const double
       case Op::kCosh: r = std::cosh(x); break;
       case Op::kTanh: r = std::tanh(x); break;
       case Op::kAtan: r = std::atan(x); break;
+      case Op::kFloor: r = std::floor(x); break;
+      case Op::kHeaviside: r = heaviside(x); break;
       default: r = std::nan(""); break;
     }
     s[in.out] = r;

@@ -300,8 +300,8 @@ struct Integrator::Impl {
   [[nodiscard]] bool balance_rule_tripped() const {
     return options.diagnostics && max_abs_balance > kInaccurateBalanceFraction * tolerance_scale;
   }
-  void write_inaccurate_message() noexcept {
-    std::snprintf(message.data(), message.size(),
+  void write_inaccurate_message(std::array<char, 480>& out) const noexcept {
+    std::snprintf(out.data(), out.size(),
                   "inaccurate: the energy balance error |E_k + W_k - E_0| reached %.6g at step %zu "
                   "(t = %.17g), more than %g x the energy scale %.6g of the run (the steps do not "
                   "resolve the motion: take more steps)",
@@ -309,22 +309,26 @@ struct Integrator::Impl {
                   kInaccurateBalanceFraction, tolerance_scale);
   }
 
-  Eigen::Map<Eigen::VectorXd> row(RowMatrixXd& m, std::size_t i) {
+  Eigen::Map<Eigen::VectorXd> row(RowMatrixXd& m, std::size_t i) const {
     return {m.row(static_cast<Eigen::Index>(i)).data(), d};
   }
   // t_i = t0 + i h, the same expression as InitialValueProblem::time() (h is its step_size()).
   [[nodiscard]] double time(std::size_t i) const { return problem.t0 + static_cast<double>(i) * h; }
 
+  // Copies the state at step k into row r of `target` (allocated).
+  void store_row(Solution& target, std::size_t r) const {
+    const auto i = static_cast<Eigen::Index>(r);
+    target.t(i) = time(k);
+    target.step[r] = k;
+    row(target.x, r) = stepper->position();
+    row(target.v, r) = stepper->velocity();
+    target.energy(i) = energy_k;
+    target.dissipated(i) = work_k;
+    target.balance(i) = balance_k;
+  }
   // Copies the state at step k into the next stored row (steps 0, s, 2s, … and the last one).
   void store() {
-    const auto i = static_cast<Eigen::Index>(saved);
-    sol.t(i) = time(k);
-    sol.step[saved] = k;
-    row(sol.x, saved) = stepper->position();
-    row(sol.v, saved) = stepper->velocity();
-    sol.energy(i) = energy_k;
-    sol.dissipated(i) = work_k;
-    sol.balance(i) = balance_k;
+    store_row(sol, saved);
     ++saved;
   }
   [[nodiscard]] bool stored(std::size_t step) const {
@@ -438,6 +442,8 @@ struct Integrator::Impl {
     stepper->visit_state(archive);
   }
 
+  [[nodiscard]] Solution result(Solution s, std::size_t rows) const;
+
   Status step() noexcept {
     if (status != Status::kRunning) return status;
     if (interrupt_requested()) return interrupt();
@@ -492,7 +498,7 @@ struct Integrator::Impl {
     if (k % options.save_every == 0 || k == n_steps) store();
     if (k == n_steps) {
       status = balance_rule_tripped() ? Status::kInaccurate : Status::kSuccess;
-      if (status == Status::kInaccurate) write_inaccurate_message();
+      if (status == Status::kInaccurate) write_inaccurate_message(message);
       stop_clock();
     }
     return status;
@@ -562,6 +568,43 @@ double Integrator::mirror_error() const {
       impl_->sol.x, std::span<const std::size_t>(impl_->sol.step.data(), impl_->saved));
 }
 
+// `s` holding `rows` rows (the stored ones and, when the run stopped between them, the state at
+// step k) as the run's result now: status, steps done, message, and the rows not reached dropped.
+Solution Integrator::Impl::result(Solution s, std::size_t rows) const {
+  s.status = status;
+  s.steps_done = k;
+  s.message = status == Status::kSuccess || status == Status::kRunning
+                  ? std::string()
+                  : std::string(message.data());
+  // A run that failed or was stopped while rule 3 held says so too: a failure may be its
+  // consequence.
+  const bool unresolved = balance_rule_tripped() && status != Status::kInaccurate;
+  if (unresolved && status != Status::kRunning) {
+    s.message += " (before that, the energy balance error had reached " +
+                 format_number(max_abs_balance) + " at step " + std::to_string(max_balance_step) +
+                 ", more than " + format_number(kInaccurateBalanceFraction) +
+                 " x the energy scale " + format_number(tolerance_scale) + ")";
+  }
+  if (status == Status::kRunning && unresolved) {
+    std::array<char, 480> inaccurate{};
+    write_inaccurate_message(inaccurate);
+    s.message = std::string(inaccurate.data()) + "; ";
+  }
+  if (status == Status::kRunning) {
+    s.message += "stopped by the caller after " + std::to_string(k) + " of " +
+                 std::to_string(n_steps) + " steps";
+  }
+  const auto n = static_cast<Eigen::Index>(rows);
+  s.step.resize(rows);
+  s.t.conservativeResize(n);
+  s.x.conservativeResize(n, Eigen::NoChange);
+  s.v.conservativeResize(n, Eigen::NoChange);
+  s.energy.conservativeResize(n);
+  s.dissipated.conservativeResize(n);
+  s.balance.conservativeResize(n);
+  return s;
+}
+
 Solution Integrator::take_solution() {
   Impl& im = *impl_;
   im.stop_clock();
@@ -572,40 +615,23 @@ Solution Integrator::take_solution() {
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
   if (!im.stored(im.k)) im.store();  // stopped by the caller between stored rows
-  Solution s = std::move(im.sol);
-  s.status = im.status;
-  s.steps_done = im.k;
-  s.message = im.status == Status::kSuccess || im.status == Status::kRunning
-                  ? std::string()
-                  : std::string(im.message.data());
-  // A run that failed or was stopped while rule 3 held says so too: a failure may be its
-  // consequence.
-  const bool unresolved = im.balance_rule_tripped() && im.status != Status::kInaccurate;
-  if (unresolved && im.status != Status::kRunning) {
-    s.message += " (before that, the energy balance error had reached " +
-                 format_number(im.max_abs_balance) + " at step " +
-                 std::to_string(im.max_balance_step) + ", more than " +
-                 format_number(kInaccurateBalanceFraction) + " x the energy scale " +
-                 format_number(im.tolerance_scale) + ")";
-  }
-  if (im.status == Status::kRunning && unresolved) {
-    im.write_inaccurate_message();
-    s.message = std::string(im.message.data()) + "; ";
-  }
-  if (im.status == Status::kRunning) {
-    s.message += "stopped by the caller after " + std::to_string(im.k) + " of " +
-                 std::to_string(im.n_steps) + " steps";
-  }
-  const auto rows = static_cast<Eigen::Index>(im.saved);
-  s.step.resize(im.saved);
-  s.t.conservativeResize(rows);
-  s.x.conservativeResize(rows, Eigen::NoChange);
-  s.v.conservativeResize(rows, Eigen::NoChange);
-  s.energy.conservativeResize(rows);
-  s.dissipated.conservativeResize(rows);
-  s.balance.conservativeResize(rows);
+  Solution s = im.result(std::move(im.sol), im.saved);
   s.wall_time_seconds = seconds;
   impl_.reset();
+  return s;
+}
+
+Solution Integrator::snapshot() const {
+  const Impl& im = *impl_;
+  Solution s = im.sol;  // every row is allocated, the one for the state at step k too
+  std::size_t rows = im.saved;
+  if (!im.stored(im.k)) im.store_row(s, rows++);
+  s = im.result(std::move(s), rows);
+  s.wall_time_seconds = im.run_seconds;
+  if (im.clock_running) {
+    s.wall_time_seconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - im.clock_start).count();
+  }
   return s;
 }
 

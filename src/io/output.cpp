@@ -4,8 +4,10 @@
 #include <atomic>
 #include <cerrno>
 #include <charconv>
+#include <cstdint>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -248,18 +250,117 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
   };
 }
 
-void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
-                      const Solution& s) {
+namespace {
+
+// A field of a summary.json being read back; `what` names the file in messages.
+struct SummaryReader {
+  const nlohmann::json& j;
+  std::string what;
+
+  [[noreturn]] void fail(const std::string& key, const std::string& rule) const {
+    throw OutputError(what + ": \"" + key + "\" " + rule);
+  }
+  const nlohmann::json& at(const nlohmann::json& object, const std::string& key) const {
+    if (!object.is_object() || !object.contains(key)) fail(key, "is missing");
+    return object[key];
+  }
+  // A number; null is NaN (json_number writes non-finite numbers as null).
+  double number(const nlohmann::json& object, const std::string& key) const {
+    const auto& v = at(object, key);
+    if (v.is_null()) return std::numeric_limits<double>::quiet_NaN();
+    if (!v.is_number()) fail(key, "= " + v.dump() + " is not a number");
+    return v.get<double>();
+  }
+  std::size_t count(const nlohmann::json& object, const std::string& key) const {
+    const auto& v = at(object, key);
+    if (!v.is_number_unsigned() && !(v.is_number_integer() && v.get<std::int64_t>() >= 0)) {
+      fail(key, "= " + v.dump() + " is not a count (an integer >= 0)");
+    }
+    return v.get<std::size_t>();
+  }
+  std::string text(const nlohmann::json& object, const std::string& key) const {
+    const auto& v = at(object, key);
+    if (!v.is_string()) fail(key, "= " + v.dump() + " is not a string");
+    return v.get<std::string>();
+  }
+  Status status(const nlohmann::json& object, const std::string& key) const {
+    const std::string name = text(object, key);
+    const auto s = parse_status(name);
+    if (!s) fail(key, "= \"" + name + "\" is not a status of a run");
+    return *s;
+  }
+};
+
+}  // namespace
+
+void read_summary(const nlohmann::json& summary, Solution& s, const std::string& what) {
+  const SummaryReader r{summary, what};
+  if (!summary.is_object()) throw OutputError(what + ": not a JSON object");
+  s.status = r.status(summary, "status");
+  s.message = r.text(summary, "message");
+  s.steps_done = r.count(summary, "steps");
+  s.mirror_error = r.number(summary, "mirror_error");
+  s.error_estimate.value = r.number(summary, "error_estimate");
+  const auto& details = r.at(summary, "error_estimate_details");
+  s.error_estimate.method = r.text(details, "method");
+  s.error_estimate.order = r.number(details, "order");
+  s.error_estimate.observed_order = r.number(details, "observed_order");
+  s.error_estimate.nodes = r.count(details, "nodes");
+  s.error_estimate.note = r.text(details, "note");
+  s.error_estimate.wall_seconds = r.number(details, "wall_seconds");
+  s.tolerance_runs.clear();
+  const auto& runs = r.at(summary, "tolerance_runs");
+  if (!runs.is_array()) r.fail("tolerance_runs", "is not an array");
+  for (const auto& run : runs) {
+    s.tolerance_runs.push_back({r.count(run, "steps"), r.number(run, "error_estimate"),
+                                r.number(run, "wall_seconds"), r.text(run, "status")});
+  }
+  s.max_balance_error = r.number(summary, "max_balance_error");
+  s.newton_iterations = r.count(summary, "newton_iterations");
+  s.max_newton_iterations_per_step = r.count(summary, "max_newton_iterations_per_step");
+  s.linear_solver = r.text(summary, "linear_solver");
+  s.history = r.text(summary, "history");
+  s.save_every = r.count(summary, "save_every");
+  if (s.save_every < 1) r.fail("save_every", "= 0 is not a storage stride (at least 1)");
+  s.wall_time_seconds = r.number(summary, "wall_seconds");
+  s.method = r.text(summary, "method");
+  const auto& order = r.at(summary, "declared_order");
+  if (!order.is_number_integer())
+    r.fail("declared_order", "= " + order.dump() + " is not an integer");
+  s.declared_order = order.get<int>();
+}
+
+std::vector<std::size_t> stored_steps(std::size_t steps_done, std::size_t save_every) {
+  std::vector<std::size_t> steps;
+  for (std::size_t k = 0; k < steps_done; k += save_every) steps.push_back(k);
+  steps.push_back(steps_done);
+  return steps;
+}
+
+void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec, const Solution& s,
+                      const TrajectoryWriter& trajectory) {
   prepare_output_directory(dir);
   const OutputLock lock(dir);
   // summary.json goes last and an earlier one first: a directory with a summary.json holds one
   // complete run, whatever was interrupted.
   std::error_code ec;
   std::filesystem::remove(dir / "summary.json", ec);
+  std::filesystem::remove(dir / (trajectory ? "trajectory.csv" : "trajectory.npz"), ec);
+  if (trajectory) {
+    trajectory(dir);
+  } else {
+    write_trajectory_csv(dir / "trajectory.csv", s);
+  }
+  write_file_atomically(dir / "problem.toml",
+                        "# written by " + version_string() + "\n" + to_toml(spec));
+  write_file_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
+}
+
+void write_trajectory_csv(const std::filesystem::path& file, const Solution& s) {
   const Eigen::Index d = s.x.cols();
   // Streamed row by row through one reused buffer: the CSV text is about three times the size of
   // the stored trajectory and is never held in memory as a whole.
-  write_file_atomically(dir / "trajectory.csv", [&s, d](std::ostream& out) {
+  write_file_atomically(file, [&s, d](std::ostream& out) {
     std::string line = "t";
     for (Eigen::Index i = 1; i <= d; ++i) line += ",x" + std::to_string(i);
     for (Eigen::Index i = 1; i <= d; ++i) line += ",v" + std::to_string(i);
@@ -278,9 +379,6 @@ void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
       out << line;
     }
   });
-  write_file_atomically(dir / "problem.toml",
-                        "# written by " + version_string() + "\n" + to_toml(spec));
-  write_file_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
 }
 
 }  // namespace fracvi

@@ -290,6 +290,106 @@ TEST(ExpressionDerivatives, AbsoluteValueHasSignAndZeroSecondDerivative) {
       {{0.5}, {1.5}, {-1.0}});
 }
 
+// min, max, atan2, floor, heaviside and e (issue 16 item 2): values as std math, derivatives by
+// the rules of docs/problem-file.md, including at the kinks and jumps.
+TEST(ExpressionFunctions, ValuesAsStdMath) {
+  const std::vector<std::string> v{"x", "y"};
+  for (double x : {0.3, -1.7, 2.0, -0.0}) {
+    for (double y : {0.6, -1.7, 2.0, 0.0}) {
+      EXPECT_EQ(eval("min(x, y)", v, {x, y}), std::min(x, y)) << x << " " << y;
+      EXPECT_EQ(eval("max(x, y)", v, {x, y}), std::max(x, y)) << x << " " << y;
+      EXPECT_EQ(eval("atan2(x, y)", v, {x, y}), std::atan2(x, y)) << x << " " << y;
+    }
+    EXPECT_EQ(eval("floor(x)", v, {x, 0}), std::floor(x));
+    EXPECT_EQ(eval("heaviside(x)", v, {x, 0}), x > 0 ? 1.0 : (x < 0 ? 0.0 : 0.5));
+  }
+  EXPECT_EQ(eval("floor(-2.5)", {}, {}), -3.0);
+  EXPECT_EQ(eval("heaviside(0)", {}, {}), 0.5);
+  EXPECT_EQ(eval("e", {}, {}), std::numbers::e);
+  EXPECT_EQ(eval("e^x", v, {2.0, 0}), std::pow(std::numbers::e, 2.0));
+  EXPECT_EQ(eval("max(1, 2) + min(3, -4) + atan2(1, 1)", {}, {}), 2.0 - 4.0 + std::atan2(1, 1));
+  // A NaN is kept (std::min would drop it in its second argument): the integrator then sees it.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const char* text : {"min(x, y)", "max(x, y)"}) {
+    EXPECT_TRUE(std::isnan(eval(text, v, {1.0, nan}))) << text;
+    EXPECT_TRUE(std::isnan(eval(text, v, {nan, 1.0}))) << text;
+  }
+  EXPECT_TRUE(std::isnan(eval("heaviside(x)", v, {nan, 0})));
+}
+
+TEST(ExpressionFunctions, DerivativeRules) {
+  const std::vector<std::string> v{"x", "y"};
+  const auto d = [&](const std::string& text, std::size_t var, std::vector<double> at) {
+    return Expression::parse(text, v).derivative(var)(at);
+  };
+  // min/max: the derivative of the selected argument; at a tie the mean of the two.
+  EXPECT_EQ(d("min(x^2, y)", 0, {1.5, 4.0}), 3.0);
+  EXPECT_EQ(d("min(x^2, y)", 1, {1.5, 4.0}), 0.0);
+  EXPECT_EQ(d("min(x^2, y)", 1, {3.0, 4.0}), 1.0);
+  EXPECT_EQ(d("max(x^2, y)", 0, {3.0, 4.0}), 6.0);
+  EXPECT_EQ(d("max(x^2, y)", 0, {2.0, 4.0}), 2.0);  // tie: (4 + 0)/2
+  EXPECT_EQ(d("min(x^2, y)", 1, {2.0, 4.0}), 0.5);  // tie: (0 + 1)/2
+  EXPECT_EQ(d("max(x, -x)", 0, {0.0, 0.0}), 0.0);   // |x| at its kink: the mean of ±1
+  // atan2(y, x) is the angle of (x, y): d/dy = x/(x² + y²), d/dx = −y/(x² + y²).
+  check_against_closed_form(
+      "atan2(x2, x1)", {"x1", "x2"}, {0, 1},
+      {[](P p) { return std::atan2(p[1], p[0]); },
+       {[](P p) { return -p[1] / (p[0] * p[0] + p[1] * p[1]); },
+        [](P p) { return p[0] / (p[0] * p[0] + p[1] * p[1]); }},
+       {{[](P p) { return 2 * p[0] * p[1] / std::pow(p[0] * p[0] + p[1] * p[1], 2); },
+         [](P p) { return (p[1] * p[1] - p[0] * p[0]) / std::pow(p[0] * p[0] + p[1] * p[1], 2); }},
+        {[](P p) { return (p[1] * p[1] - p[0] * p[0]) / std::pow(p[0] * p[0] + p[1] * p[1], 2); },
+         [](P p) { return -2 * p[0] * p[1] / std::pow(p[0] * p[0] + p[1] * p[1], 2); }}}},
+      {{1.0, 0.5}, {-0.7, 1.2}, {-1.0, -0.3}});
+  // floor and heaviside are piecewise constant: derivative 0 (the jumps are not seen).
+  for (const char* text : {"floor(3*x)", "heaviside(x - 1)"}) {
+    const auto f = Expression::parse(text, v);
+    EXPECT_TRUE(f.derivative(0).is_constant()) << text;
+    EXPECT_EQ(f.derivative(0)({0.4, 0.0}), 0.0) << text;
+  }
+  // A switched spring: U = heaviside(t - 1) x²/2 has U_x = heaviside(t - 1) x.
+  EXPECT_EQ(Expression::parse("heaviside(t - 1)*x^2/2", {"x", "t"}).derivative(0)({3.0, 2.0}), 3.0);
+  EXPECT_EQ(Expression::parse("heaviside(t - 1)*x^2/2", {"x", "t"}).derivative(0)({3.0, 0.5}), 0.0);
+  // Smooth away from the kinks: agreement with central differences.
+  const std::vector<std::string> formulas = {"max(x^2, y) - min(x*y, 1)", "atan2(y, x)*e",
+                                             "x*floor(y) + heaviside(y)*y^2"};
+  for (const auto& text : formulas) {
+    const auto f = Expression::parse(text, v);
+    for (const std::vector<double>& p : {std::vector{0.7, 1.3}, std::vector{-1.1, 0.4}}) {
+      for (std::size_t k = 0; k < 2; ++k) {
+        const double h = 1e-6;
+        auto plus = p, minus = p;
+        plus[k] += h;
+        minus[k] -= h;
+        EXPECT_NEAR(f.derivative(k)(p), (f(plus) - f(minus)) / (2 * h), 1e-8) << text << k;
+      }
+    }
+  }
+}
+
+TEST(ExpressionFunctions, PrintingAndErrors) {
+  const std::vector<std::string> v{"x", "y"};
+  EXPECT_EQ(Expression::parse("min(x, y) + atan2(y, 2) + e", v).to_string(),
+            "min(x, y) + atan2(y, 2) + e");
+  const auto f = Expression::parse("max(x^2, y)", v);
+  const auto again = Expression::parse(f.derivative(0).to_string(), v);
+  EXPECT_EQ(again({1.0, 3.0}), f.derivative(0)({1.0, 3.0}));
+  const auto message = [&](const std::string& text) {
+    try {
+      (void)Expression::parse(text, v);
+    } catch (const ExpressionError& e) {
+      return e.reason();
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message("min(x)"), "function 'min' takes 2 arguments but was given 1");
+  EXPECT_EQ(message("floor(x, y)"), "function 'floor' takes 1 argument but was given 2");
+  EXPECT_EQ(message("atan2"), "function 'atan2' needs an argument list, e.g. atan2(x, 2)");
+  EXPECT_EQ(message("e(x)"), "'e' is a constant, not a function (missing '*' before '('?)");
+  EXPECT_NE(message("heavyside(x)").find("did you mean 'heaviside'?"), std::string::npos);
+  EXPECT_THROW((void)Expression::parse("e", {"e"}), std::invalid_argument);  // reserved
+}
+
 TEST(ExpressionDerivatives, IntegerPowersWorkForNegativeBases) {
   check_against_closed_form("x1^3 + x1^-2", {"x1"}, {0},
                             {[](P p) { return std::pow(p[0], 3) + std::pow(p[0], -2); },

@@ -232,6 +232,36 @@ TEST(Integrator, StoppedByTheCallerKeepsWhatWasComputed) {
   EXPECT_NE(sol.message.find("7 of 100"), std::string::npos);
 }
 
+// snapshot() is take_solution() now, without ending the run: between stored rows (every = 3) it
+// ends with the current state, and the Integrator goes on to the same trajectory as one call.
+TEST(Integrator, SnapshotIsTheSolutionSoFarAndTheRunGoesOn) {
+  const InitialValueProblem p = pendula(0.75, Convention::kCaputo, kX0, kV0, 20);
+  IntegratorOptions options;
+  options.save_every = 3;
+  const Solution one = integrate(p, fvi_gl(), options);
+  Integrator integ(p, fvi_gl(), options);
+  for (int i = 0; i < 7; ++i) integ.step();
+  const Solution part = integ.snapshot();
+  EXPECT_EQ(part.status, Status::kRunning);
+  EXPECT_EQ(part.steps_done, 7u);
+  EXPECT_EQ(part.step, (std::vector<std::size_t>{0, 3, 6, 7}));
+  EXPECT_EQ(part.x.rows(), 4);
+  EXPECT_EQ(part.x.row(3), integ.position().transpose());
+  EXPECT_EQ(part.x.row(2), one.x.row(2));  // step 6
+  EXPECT_EQ(part.t[3], integ.time());
+  EXPECT_NE(part.message.find("7 of 20"), std::string::npos) << part.message;
+  EXPECT_TRUE(std::isnan(part.mirror_error));
+  integ.run();
+  const Solution end = integ.snapshot();
+  EXPECT_EQ(end.status, Status::kSuccess);
+  EXPECT_EQ(end.step, one.step);
+  EXPECT_TRUE((end.x.array() == one.x.array()).all());
+  EXPECT_TRUE((end.balance.array() == one.balance.array()).all());
+  const Solution taken = integ.take_solution();
+  EXPECT_TRUE((taken.x.array() == one.x.array()).all());
+  EXPECT_EQ(taken.mirror_error, one.mirror_error);
+}
+
 TEST(Integrator, DiagnosticsOffLeavesTrajectoryUnchanged) {
   for (const double alpha : {0.5, 0.75}) {
     const InitialValueProblem p = pendula(alpha, Convention::kCaputo, kX0, kV0);

@@ -1,6 +1,7 @@
 // How a run ended (DESIGN §4, "numerical failure is data"). Bottom layer: every layer may use it.
 #pragma once
 
+#include <optional>
 #include <string_view>
 
 namespace fracvi {
@@ -25,5 +26,7 @@ enum class Status {
 };
 
 std::string_view to_string(Status status);
+/// The inverse of to_string (summary.json's "status"); nullopt for any other name.
+std::optional<Status> parse_status(std::string_view name);
 
 }  // namespace fracvi

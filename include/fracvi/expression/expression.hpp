@@ -21,8 +21,12 @@
 //   primary := number | name | name '(' expr (',' expr)* ')' | '(' expr ')'
 // Numbers use C notation: 123, 1.5, .5, 5., 1e-3, 1E+3, 0x1F, 0x1.8p1 (no suffixes; a
 // leading-zero integer such as 017 is rejected because C would read it as octal). The constant
-// `pi` and the functions sin cos tan exp log sqrt abs sign sinh cosh tanh atan pow(a, b) are
-// built in.
+// constants `pi` and `e` and the functions sin cos tan exp log sqrt abs sign sinh cosh tanh atan
+// floor heaviside and pow(a, b) min(a, b) max(a, b) atan2(y, x) are built in. Derivatives at
+// kinks and jumps (docs/problem-file.md, "Formulas"): abs' = sign (0 at 0); sign, floor and
+// heaviside (1/2 at 0) have derivative 0 (their jumps are not seen); min and max take the
+// derivative of the selected argument and the mean of the two at a tie; atan2(y, x)' =
+// (x y' − y x')/(x² + y²).
 #pragma once
 
 #include <Eigen/Core>

@@ -133,6 +133,11 @@ class Integrator {
   /// The factorisation in use for the scheme's implicit step (kDense, kBanded or kSparse).
   [[nodiscard]] LinearSolver linear_solver() const;
 
+  /// The solution so far without ending the run: what take_solution() would return now (the
+  /// stored rows, the state at the current step as the last row, status and message), as a copy
+  /// and without the mirror run; the Integrator goes on. Allocates (not for the step loop).
+  [[nodiscard]] Solution snapshot() const;
+
   /// Runs the backward mirror equation on the computed trajectory (if options().mirror and the run
   /// succeeded), records the wall time, drops unreached rows and hands the solution over. The
   /// Integrator is unusable afterwards.

@@ -8,6 +8,7 @@
 #include <ostream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/integrate/solution.hpp"
@@ -75,13 +76,34 @@ class OutputLock {
 /// fully resolved problem (so the run can be reproduced from its output).
 nlohmann::json make_summary(const ProblemSpec& spec, const Solution& solution);
 
+/// trajectory.csv of write_run_output: `t,x1..xd,v1..vd,energy,dissipated,balance`, one line per
+/// stored row, 17 significant digits (every double reads back to itself), written atomically.
+void write_trajectory_csv(const std::filesystem::path& file, const Solution& solution);
+
+/// Reads back what make_summary() wrote about the solution itself (status, message, steps, the
+/// statistics, the error estimate, the tolerance runs; null numbers are NaN) into `solution`,
+/// whose arrays are left alone: the inverse of make_summary for everything but the final state
+/// and the problem, which trajectory.csv and problem.toml hold. Throws OutputError "<what>:
+/// "<key>" <rule>" for a missing field or one of the wrong type.
+void read_summary(const nlohmann::json& summary, Solution& solution, const std::string& what);
+
+/// The step index of each row the Integrator stores for a run that completed `steps_done` steps
+/// with save_every = s: 0, s, 2s, … below steps_done, and steps_done (trajectory.csv has no
+/// step column; these are its rows).
+std::vector<std::size_t> stored_steps(std::size_t steps_done, std::size_t save_every);
+
 /// Writes trajectory.csv (header `t,x1..xd,v1..vd,energy,dissipated,balance`, one line per stored
 /// row of the solution — every save_every-th step and the last computed one, as the integrator
 /// kept them — 17 significant digits), problem.toml and, last, summary.json into `dir` (created
 /// if needed), under an OutputLock of `dir`. An earlier summary.json is removed first, so that a
 /// directory with a summary.json holds one complete run. Files are written to temporaries and
 /// renamed, so a crash never leaves a half-written file under the final name.
+/// `trajectory`, when given, writes the trajectory in another form in place of trajectory.csv
+/// (fracvi.write(..., format="npz") writes trajectory.npz), under the same lock and before
+/// summary.json; the CSV of an earlier run is removed then, as trajectory.npz is when the CSV is
+/// written, so that the directory holds one trajectory.
+using TrajectoryWriter = std::function<void(const std::filesystem::path& dir)>;
 void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
-                      const Solution& solution);
+                      const Solution& solution, const TrajectoryWriter& trajectory = {});
 
 }  // namespace fracvi
