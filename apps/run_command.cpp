@@ -201,8 +201,13 @@ Command add_run_command(CLI::App& parent) {
       }
       std::printf("  balance error     max |E_k + W_k - E_0| = %.3e  (consistency check)\n",
                   solution.max_balance_error);
-      std::printf("  mirror error      max |y_k - x_(N-k)| = %.3e  (consistency check)\n",
-                  solution.mirror_error);
+      if (options.mirror) {
+        std::printf("  mirror error      max |y_k - x_(N-k)| = %.3e  (consistency check)\n",
+                    solution.mirror_error);
+      } else {
+        std::printf("  mirror error      not run (method.mirror = \"%s\"%s)\n", spec.mirror.c_str(),
+                    spec.mirror == "auto" ? ": time.steps x model.dim > 10^6; \"on\" runs it" : "");
+      }
       if (!spec.reference.empty()) {
         std::printf("  reference error   max |x_k - x_ref(t_k)| = %.3e\n",
                     max_error(solution, parse_reference(spec.reference)));
@@ -213,7 +218,9 @@ Command add_run_command(CLI::App& parent) {
       std::printf("  stored            %lld of %zu states (save_every %zu)\n",
                   static_cast<long long>(solution.t.size()), solution.steps_done + 1,
                   solution.save_every);
-      std::printf("  wall time         %.3f s\n", solution.wall_time_seconds);
+      std::printf("  wall time         %.3f s  (set-up %.3f s, stepping %.3f s%s)\n",
+                  solution.setup_seconds + solution.wall_time_seconds, solution.setup_seconds,
+                  solution.wall_time_seconds, options.mirror ? " with the mirror run" : "");
       std::printf("  output            %s/{trajectory.csv,summary.json,problem.toml%s}\n",
                   dir.string().c_str(), !opt->no_plot && plot_note.empty() ? ",*.png" : "");
       if (!plot_note.empty()) std::printf("  plots             %s\n", plot_note.c_str());

@@ -15,7 +15,7 @@ import fracvi
 from conftest import BLOWUP, FRACTIONAL, LAGRANGIAN, PROBLEM, read_summary
 
 # Not reproducible between runs, and not a result.
-VOLATILE = {"wall_seconds"}
+VOLATILE = {"wall_seconds", "setup_wall_seconds", "stepping_wall_seconds"}
 
 
 def cli_run(cli, path, out, *args):

@@ -505,9 +505,12 @@ struct Integrator::Impl {
   }
 };
 
-Integrator::Integrator(InitialValueProblem problem, Method method, IntegratorOptions options)
-    : impl_(std::make_unique<Impl>(validated(std::move(problem), method, options), method,
-                                   options)) {}
+Integrator::Integrator(InitialValueProblem problem, Method method, IntegratorOptions options) {
+  const auto start = std::chrono::steady_clock::now();
+  impl_ = std::make_unique<Impl>(validated(std::move(problem), method, options), method, options);
+  impl_->sol.setup_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 
 Integrator::~Integrator() = default;
 Integrator::Integrator(Integrator&&) noexcept = default;

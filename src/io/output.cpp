@@ -66,6 +66,7 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   o.max_steps = static_cast<std::size_t>(spec.max_steps);
   o.threads = spec.threads;
   o.save_every = static_cast<std::size_t>(spec.every);
+  o.mirror = mirror_check_runs(spec);
   return o;
 }
 
@@ -243,7 +244,9 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
       {"linear_solver", s.linear_solver},
       {"history", s.history},
       {"save_every", s.save_every},
-      {"wall_seconds", s.wall_time_seconds},
+      {"wall_seconds", s.setup_seconds + s.wall_time_seconds},
+      {"setup_wall_seconds", s.setup_seconds},
+      {"stepping_wall_seconds", s.wall_time_seconds},
       {"method", s.method},
       {"declared_order", s.declared_order},
       {"problem", to_json(spec)},

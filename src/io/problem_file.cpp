@@ -662,6 +662,14 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
                                           joined(kinds) + did_you_mean(p.error_estimate, kinds));
     }
   }
+  if (const auto* n = r.find("method", "mirror")) {
+    p.mirror = r.string(*n, "method.mirror");
+    const std::vector<std::string> choices{"auto", "on", "off"};
+    if (std::find(choices.begin(), choices.end(), p.mirror) == choices.end()) {
+      r.fail("method.mirror", "= \"" + p.mirror + "\" is not one of " + joined(choices) +
+                                  did_you_mean(p.mirror, choices));
+    }
+  }
   if (const auto* n = r.find("method", "tolerance")) {
     p.tolerance = r.number(*n, "method.tolerance");
     if (!(p.tolerance > 0.0) || !std::isfinite(p.tolerance)) {
@@ -897,6 +905,13 @@ std::string to_toml(const ProblemSpec& p) {
   std::ostringstream os;
   os << to_toml_table(to_json(p), p.source, "") << '\n';
   return os.str();
+}
+
+bool mirror_check_runs(const ProblemSpec& spec) {
+  if (spec.mirror != "auto") return spec.mirror == "on";
+  // The product of two checked integers (time.steps, model.dim), in floating point: no overflow.
+  return static_cast<double>(spec.steps) * static_cast<double>(spec.dim) <=
+         static_cast<double>(kAutoMirrorWork);
 }
 
 }  // namespace fracvi

@@ -195,6 +195,10 @@ std::vector<ProblemField> make_schema() {
        "a-posteriori error estimate: richardson (runs with N/2, N/4 steps) or none",
        FRACVI_BINDING(IntegratorOptions, error_estimate),
        [](P p) { return Json(p.error_estimate); }},
+      {"method", "mirror", "string", in_quotes(d.mirror),
+       "the mirror check (backward run of DiscEqs' second line): auto (on when time.steps x "
+       "model.dim <= 10^6), on or off",
+       FRACVI_BINDING(IntegratorOptions, mirror), [](P p) { return Json(p.mirror); }},
       {"method", "tolerance", "number", "0 (off)",
        "> 0: double time.steps until the error estimate is <= tolerance",
        FRACVI_BINDING(IntegratorOptions, tolerance),

@@ -188,6 +188,19 @@ class Run(unittest.TestCase):
             f.write(text)
         return path
 
+    def test_mirror_check_off(self):
+        out = os.path.join(self.dir, "out")
+        r = run("run", "--out", out, "--no-plot", "--set", "time.steps=600",
+                "--set", "method.mirror=off")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn('mirror error      not run (method.mirror = "off")', r.stdout)
+        self.assertIn("stepping", r.stdout)
+        self.assertNotIn("with the mirror run", r.stdout)
+        with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+            summary = json.load(f)
+        self.assertIsNone(summary["mirror_error"])
+        self.assertEqual(summary["problem"]["method"]["mirror"], "off")
+
     def test_built_in_problem_writes_everything(self):
         out = os.path.join(self.dir, "out")
         r = run("run", "--out", out, "--set", "time.end=6", "--set", "time.steps=600")
@@ -203,6 +216,14 @@ class Run(unittest.TestCase):
         for key in ("message", "final_position", "final_velocity", "max_balance_error",
                     "newton_iterations", "wall_seconds"):
             self.assertIn(key, summary)
+        # The whole cost is set-up plus stepping, each reported.
+        self.assertGreater(summary["setup_wall_seconds"], 0.0)
+        self.assertGreater(summary["stepping_wall_seconds"], 0.0)
+        self.assertAlmostEqual(
+            summary["wall_seconds"],
+            summary["setup_wall_seconds"] + summary["stepping_wall_seconds"], delta=1e-12)
+        self.assertRegex(r.stdout, r"wall time +[0-9.]+ s  \(set-up [0-9.]+ s, stepping [0-9.]+ s "
+                                   r"with the mirror run\)")
         with open(os.path.join(out, "trajectory.csv"), encoding="utf-8") as f:
             rows = list(csv.reader(f))
         self.assertEqual(rows[0], ["t", "x1", "v1", "energy", "dissipated", "balance"])
@@ -488,7 +509,7 @@ class Run(unittest.TestCase):
              "fracvi run: <built-in problem>: --set method.newton_tolerence: unknown key (did you "
              "mean 'newton_tolerance'?); valid in [method]: scheme, newton_tolerance, "
              "newton_max_iterations, history, history_tolerance, abs_tolerance, rel_tolerance, "
-             "linear_solver, load, error_estimate, tolerance, max_steps, threads"),
+             "linear_solver, load, error_estimate, mirror, tolerance, max_steps, threads"),
             (["output.stride=2"],
              "fracvi run: <built-in problem>: --set output.stride: unknown key; valid in [output]: "
              "every, checkpoint_every"),

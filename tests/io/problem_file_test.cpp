@@ -465,6 +465,23 @@ TEST(ProblemFile, LinearSolverAndThreads) {
   expect_error(kBase + "[method]\nthread = 1\n", {"method.thread", "did you mean 'threads'?"});
 }
 
+// method.mirror: "auto" runs the mirror check up to kAutoMirrorWork step-DOFs (kBase: d = 2).
+TEST(ProblemFile, MirrorCheckAutoOnOff) {
+  EXPECT_EQ(parse(kBase).mirror, "auto");
+  EXPECT_TRUE(make_integrator_options(parse(kBase)).mirror);
+  const std::string at_limit = "time.steps=" + std::to_string(kAutoMirrorWork / 2);
+  const std::string past_limit = "time.steps=" + std::to_string(kAutoMirrorWork / 2 + 1);
+  EXPECT_TRUE(make_integrator_options(parse(kBase, {at_limit})).mirror);
+  EXPECT_FALSE(make_integrator_options(parse(kBase, {past_limit})).mirror);
+  EXPECT_TRUE(make_integrator_options(parse(kBase, {past_limit, "method.mirror=on"})).mirror);
+  EXPECT_FALSE(make_integrator_options(parse(kBase, {"method.mirror=off"})).mirror);
+  const ProblemSpec off = parse(kBase + "[method]\nmirror = \"off\"\n");
+  EXPECT_EQ(parse_problem(to_toml(off), "round-trip").mirror, "off");
+  expect_error(kBase + "[method]\nmirror = \"offf\"\n",
+               {"method.mirror = \"offf\" is not one of auto, on, off", "did you mean 'off'?"});
+  expect_error(kBase + "[method]\nmirror = true\n", {"method.mirror", "must be a string"});
+}
+
 TEST(ProblemFile, RoundTripOfTheNewKeys) {
   const std::string text = chain_with("[time]", "velocity = \"0.01*i\"\n[time]") +
                            "[method]\nlinear_solver = \"sparse\"\nthreads = 1\n[output]\nevery = "

@@ -83,7 +83,11 @@ struct Solution {
   /// (`DiscEqs`, second line); NaN if not computed (disabled, or the run did not succeed).
   double mirror_error = std::numeric_limits<double>::quiet_NaN();
   double max_balance_error = 0.0;  ///< max_k |balance[k]| (NaN with options.diagnostics = false)
-  double wall_time_seconds = 0.0;  ///< x-run plus mirror run
+  /// Stepping: the x-run plus the mirror run (the integration alone, what comparisons time).
+  double wall_time_seconds = 0.0;
+  /// Setting up the run before step 1 (Integrator's constructor: validation, weights, the fast
+  /// history's fit or FFT plans, factorisations); a run's whole cost is the sum of the two.
+  double setup_seconds = 0.0;
   /// Filled by estimate_error() (fracvi/analysis/error_estimate.hpp), not by the Integrator.
   ErrorEstimate error_estimate;
   /// The runs of integrate_to_tolerance() that led to this one (this one last); empty otherwise.

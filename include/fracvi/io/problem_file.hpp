@@ -10,7 +10,7 @@
 //              [boundary] is given)
 //   [boundary] start, end           (x(a) = y(b), x(b) = y(a): the BVP of `fracvi bvp`)
 //   [time]     start, end, steps | step
-//   [method]   scheme, newton_tolerance, newton_max_iterations, history, history_tolerance,
+//   [method]   scheme, newton_tolerance, newton_max_iterations, history, history_tolerance, mirror,
 //              abs_tolerance, rel_tolerance,
 //              linear_solver, threads
 //   [output]   every                (the stride of the stored states)
@@ -105,6 +105,10 @@ struct ProblemSpec {
   double tolerance = IntegratorOptions{}.tolerance;
   /// the ceiling of that doubling
   long long max_steps = static_cast<long long>(IntegratorOptions{}.max_steps);
+  /// "auto", "on" or "off": the backward run of the mirror equation and its mirror error (a
+  /// consistency check that costs about one more run); "auto" runs it when
+  /// time.steps · model.dim ≤ kAutoMirrorWork (mirror_check_runs)
+  std::string mirror = "auto";
   int threads =
       IntegratorOptions{}.threads;  ///< OpenMP threads over the degrees of freedom; 0 = all
 
@@ -118,6 +122,15 @@ struct ProblemSpec {
   // [reference]
   std::vector<std::string> reference;  ///< exact x(t), empty or d formulas in t
 };
+
+/// Step-DOFs (time.steps · model.dim) up to which method.mirror = "auto" runs the mirror check:
+/// such runs take well under a second (bench/RESULTS.md: 0.1–1 µs per step-DOF for the midpoint
+/// schemes), so the check is nearly free; above it the check would double a long run's wait, and
+/// the error estimate, not the mirror, is what measures accuracy.
+inline constexpr long long kAutoMirrorWork = 1'000'000;
+
+/// Whether a run of `spec` runs the mirror check (method.mirror and, for "auto", kAutoMirrorWork).
+bool mirror_check_runs(const ProblemSpec& spec);
 
 /// Parses and validates a problem from TOML text. `overrides` are "section.key=value" strings
 /// (the CLI's --set), applied before validation; the key must be a field of the schema
