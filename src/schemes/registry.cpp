@@ -126,6 +126,14 @@ void check_applicable(const InitialValueProblem& problem, const Method& method,
                           "\" (no fast memory for its weights): use \"auto\" (the direct sum for "
                           "this scheme) or \"direct\"");
   }
+  if (options.start == StartValue::kExplicitEuler && !info.explicit_euler_start) {
+    throw ValidationError(
+        "start = \"euler\" (x_1 = x_0 + h v_0) is not available for "
+        "method.scheme = \"" +
+        std::string(info.name) +
+        "\" (schemes with it: " + scheme_names_with(&SchemeInfo::explicit_euler_start) +
+        "); its own start keeps its order: use \"legendre\"");
+  }
   if (options.load == ForcingLoad::kMoments && !info.forcing_moments) {
     const std::string with = scheme_names_with(&SchemeInfo::forcing_moments);
     throw ValidationError("method.load = \"moments\" is not available for method.scheme = \"" +

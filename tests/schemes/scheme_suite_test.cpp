@@ -593,6 +593,31 @@ TEST_P(SchemeSuite, StepLoopDoesNotAllocate) {
 // ---------------------------------------------------------------------------------------------
 // (e) Failure is data.
 
+// options.start = kExplicitEuler: honoured (x_1 = x_0 + h v_0 exactly) where the registry row says
+// so, refused before step 1 elsewhere (no scheme ignores it silently).
+TEST_P(SchemeSuite, ExplicitEulerStartHonouredOrRefused) {
+  const InitialValueProblem p = test::forced_pendula(0.75, 40, 2.0);
+  IntegratorOptions options;
+  options.start = StartValue::kExplicitEuler;
+  if (!info().explicit_euler_start) {
+    try {
+      check_applicable(p, method(), options);
+      ADD_FAILURE() << name() << " accepted start = euler without honouring it";
+    } catch (const ValidationError& e) {
+      EXPECT_NE(std::string(e.what()).find("start = \"euler\""), std::string::npos) << e.what();
+    }
+    return;
+  }
+  options.mirror = false;
+  const Solution euler = integrate(p, method(), options);
+  ASSERT_TRUE(euler.ok()) << euler.message;
+  const Eigen::VectorXd expected = p.x0 + p.step_size() * p.v0;
+  EXPECT_EQ((euler.x.row(1).transpose() - expected).cwiseAbs().maxCoeff(), 0.0);
+  options.start = StartValue::kDiscreteLegendre;
+  const Solution own = integrate(p, method(), options);
+  EXPECT_GT((own.x.row(1).transpose() - expected).cwiseAbs().maxCoeff(), 1e-6);
+}
+
 TEST_P(SchemeSuite, FailingRunKeepsPartialTrajectory) {
   constexpr std::size_t kN = 200;
   constexpr double kTEnd = 2.0, kTFail = 1.3;

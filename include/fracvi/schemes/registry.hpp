@@ -74,6 +74,9 @@ struct SchemeInfo {
   /// checkpoints (`[output] checkpoint_every`) and be resumed bit-for-bit; refused before step 1
   /// otherwise.
   bool checkpoints = false;
+  /// options.start = StartValue::kExplicitEuler (x_1 = x_0 + h v_0, a negative control of the
+  /// scheme's own start) is honoured; refused before step 1 otherwise.
+  bool explicit_euler_start = false;
   std::string_view applies_to;      ///< where it applies, in words ("every model", "2α = 1")
   std::string_view stability_rule;  ///< the stability bound in words
   /// The order the scheme reaches on smooth solutions of this model.
