@@ -398,7 +398,10 @@ class Solution:
     error_estimate = _view("error_estimate",
                            "estimated max_k ‖x_k − x(t_k)‖_∞ (Richardson from companion runs with "
                            "N/2 and N/4 steps; NaN when none: summary()['error_estimate_details'])")
-    wall_time = _view("wall_time", "seconds (forward plus mirror run)")
+    wall_time = _view("wall_time", "seconds of stepping (forward plus mirror run)")
+    setup_time = _view("setup_time", "seconds of set-up before step 1 (weights, the fast "
+                       "history's fit or FFT plans, factorisations); the run's whole cost is "
+                       "setup_time + wall_time")
     method = _view("method", 'the scheme, e.g. "fvi-gl"')
     linear_solver = _view("linear_solver",
                           'factorisation of the Newton matrix used: "dense", "banded" or "sparse"')
@@ -432,16 +435,26 @@ class Solution:
                 f"mirror_error={self.mirror_error:.3g})")
 
 
-def _run_options(mirror, diagnostics, newton_absolute_tolerance, history, start):
-    return _fracvi.RunOptions(bool(mirror), bool(diagnostics), float(newton_absolute_tolerance),
-                              history or "", start)
+def _run_options(diagnostics, newton_absolute_tolerance, history, start):
+    return _fracvi.RunOptions(bool(diagnostics), float(newton_absolute_tolerance), history or "",
+                              start)
+
+
+def _with_mirror(fields, mirror):
+    """The mirror keyword as the problem's method.mirror: True/False are "on"/"off", a string is
+    taken as it is ("auto", "on", "off"), None keeps the problem's value."""
+    if mirror is None:
+        return fields
+    if isinstance(mirror, bool):
+        mirror = "on" if mirror else "off"
+    return dict(fields, mirror=mirror)
 
 
 def _unpickle_solution(problem, summary, *arrays):
     return Solution(_fracvi.restore_run(problem._spec, summary, *arrays, "<pickle>"), problem)
 
 
-def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostics=True,
+def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=None, diagnostics=True,
               history=None, start="legendre", raise_on_failure=False, **fields):
     """Integrates `problem` (a Problem, a dict, or a TOML path/text) to its final time.
 
@@ -455,8 +468,10 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostic
     max_steps; summary()["tolerance_runs"] lists the runs), threads (0: all cores), every (store every n-th state)) may be
     given as a keyword: it overrides the problem's value, is validated by the same reader as a
     problem file, and is recorded in summary(). An unknown keyword is a TypeError naming the valid
-    ones. The rest are run options: newton_absolute_tolerance, mirror (run the backward mirror
-    equation and report mirror_error; doubles the cost), diagnostics (energy, dissipated, balance
+    ones. mirror is method.mirror (the backward run of the mirror equation and mirror_error, a
+    consistency check costing about one more run: "auto" — on when steps × dim ≤ 10^6 — "on" or
+    "off"; True and False mean "on" and "off"; None keeps the problem's). The rest are run
+    options: newton_absolute_tolerance, diagnostics (energy, dissipated, balance
     columns), history (the memory sum's implementation: None keeps the problem's [method]
     history, else "auto", "direct" or "fast"), start ("legendre": the discrete Legendre
     transform, or "euler": first-order x_1 = x_0 + h v_0, for comparisons).
@@ -470,10 +485,10 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostic
     signal handler raised) propagates with the partial solution as its attribute .solution
     (status "interrupted", the trajectory up to the last completed step).
     """
-    problem = _with_fields(_as_problem(problem), fields, "integrate", _FIELD_SECTIONS,
-                           _RUN_OPTIONS)
-    run = _fracvi.integrate(problem._spec, _run_options(mirror, diagnostics,
-                                                        newton_absolute_tolerance, history, start))
+    problem = _with_fields(_as_problem(problem), _with_mirror(fields, mirror), "integrate",
+                           _FIELD_SECTIONS, _RUN_OPTIONS)
+    run = _fracvi.integrate(problem._spec,
+                            _run_options(diagnostics, newton_absolute_tolerance, history, start))
     solution = Solution(run, problem)
     if run.interrupt is not None:
         # Ctrl-C (or another signal whose handler raised) during the run: the run stopped at the
@@ -498,7 +513,8 @@ class Integrator:
 
     Integrator(problem, **options) takes what integrate() takes: a Problem, a dict or a TOML
     path/text, any key of [method] and [output] as a keyword (scheme="fvi-bdf2", every=10, ...)
-    and the run options newton_absolute_tolerance, mirror, diagnostics, history, start and
+    (mirror as in integrate) and the run options newton_absolute_tolerance, diagnostics, history,
+    start and
     raise_on_failure. It checks the problem and sets up the whole storage at once (as integrate
     does), then
 
@@ -527,12 +543,12 @@ class Integrator:
 
     __slots__ = ("_native", "problem", "_raise_on_failure")
 
-    def __init__(self, problem, *, newton_absolute_tolerance=0.0, mirror=True, diagnostics=True,
+    def __init__(self, problem, *, newton_absolute_tolerance=0.0, mirror=None, diagnostics=True,
                  history=None, start="legendre", raise_on_failure=False, **fields):
-        self.problem = _with_fields(_as_problem(problem), fields, "Integrator", _FIELD_SECTIONS,
-                                    _RUN_OPTIONS)
+        self.problem = _with_fields(_as_problem(problem), _with_mirror(fields, mirror),
+                                    "Integrator", _FIELD_SECTIONS, _RUN_OPTIONS)
         self._native = _fracvi.Stepping(self.problem._spec, _run_options(
-            mirror, diagnostics, newton_absolute_tolerance, history, start))
+            diagnostics, newton_absolute_tolerance, history, start))
         self._raise_on_failure = bool(raise_on_failure)
 
     status = property(lambda self: self._native.status,
@@ -1034,11 +1050,11 @@ def problem_schema():
 _NOT_KEYWORDS = ("history", "checkpoint_every")
 _FIELD_SECTIONS = {row["key"]: row["section"] for row in _fracvi.problem_schema()
                    if row["section"] in ("method", "output") and row["key"] not in _NOT_KEYWORDS}
-_RUN_OPTIONS = ("newton_absolute_tolerance", "mirror", "diagnostics", "history", "start",
+_RUN_OPTIONS = ("newton_absolute_tolerance", "diagnostics", "history", "start",
                 "raise_on_failure")
 # solve_bvp()'s keywords: every key of [method] and [output] but those of the initial value
 # drivers (the error estimate and its tolerance; solve_bvp's own `tolerance` is its residual's).
-_IVP_ONLY = ("error_estimate", "tolerance", "max_steps", "checkpoint_every")
+_IVP_ONLY = ("error_estimate", "tolerance", "max_steps", "checkpoint_every", "mirror")
 _BVP_FIELD_SECTIONS = {row["key"]: row["section"] for row in _fracvi.problem_schema()
                        if row["section"] in ("method", "output") and row["key"] not in _IVP_ONLY}
 _BVP_OPTIONS = ("sum", "solver", "tolerance", "raise_on_failure")

@@ -280,7 +280,6 @@ StartValue parse_start(const std::string& name) {
 /// The run options of fracvi.integrate and fracvi.Integrator (the keywords that are not fields of
 /// the problem).
 struct RunOptions {
-  bool mirror = true;
   bool diagnostics = true;
   double absolute_tolerance = 0.0;
   std::string history;  // "" keeps the problem's
@@ -298,7 +297,6 @@ PreparedRun prepare_python_run(const ProblemSpec& spec, const RunOptions& run,
     throw ProblemError(e.what());
   }
   IntegratorOptions& options = prepared.options;
-  options.mirror = run.mirror;
   options.diagnostics = run.diagnostics;
   options.newton.absolute_tolerance = run.absolute_tolerance;
   if (const auto kind = parse_history(run.history)) options.history = *kind;
@@ -993,6 +991,7 @@ void bind(py::module_& m) {
       .def_property_readonly("max_balance_error",
                              [](const Run& r) { return r.solution.max_balance_error; })
       .def_property_readonly("wall_time", [](const Run& r) { return r.solution.wall_time_seconds; })
+      .def_property_readonly("setup_time", [](const Run& r) { return r.solution.setup_seconds; })
       .def_property_readonly("method", [](const Run& r) { return r.solution.method; })
       .def_property_readonly("declared_order",
                              [](const Run& r) { return r.solution.declared_order; })
@@ -1088,12 +1087,12 @@ void bind(py::module_& m) {
       py::arg("resume"));
 
   py::class_<RunOptions>(m, "RunOptions", "The run options of integrate() and Integrator.")
-      .def(py::init([](bool mirror, bool diagnostics, double absolute_tolerance,
-                       const std::string& history, const std::string& start) {
-             return RunOptions{mirror, diagnostics, absolute_tolerance, history, start};
+      .def(py::init([](bool diagnostics, double absolute_tolerance, const std::string& history,
+                       const std::string& start) {
+             return RunOptions{diagnostics, absolute_tolerance, history, start};
            }),
-           py::arg("mirror"), py::arg("diagnostics"), py::arg("absolute_tolerance"),
-           py::arg("history"), py::arg("start"));
+           py::arg("diagnostics"), py::arg("absolute_tolerance"), py::arg("history"),
+           py::arg("start"));
 
   m.def("integrate", &run_problem, py::arg("spec"), py::arg("options"));
   m.def("restore_run", &restore_run, py::arg("spec"), py::arg("summary"), py::arg("t"),

@@ -203,6 +203,16 @@ def test_run_options():
     no_mirror = fracvi.integrate(problem, mirror=False)
     assert math.isnan(no_mirror.mirror_error) and not math.isnan(base.mirror_error)
     assert np.array_equal(no_mirror.x, base.x)
+    assert no_mirror.summary()["problem"]["method"]["mirror"] == "off"
+    # method.mirror = "auto" (the default): on up to steps × dim = 10^6, off above.
+    assert base.summary()["problem"]["method"]["mirror"] == "auto"
+    cheap = dict(scheme="fvi-gl", error_estimate="none", every=100_000, diagnostics=False)
+    longer = problem.with_overrides("time.steps=1000001")
+    assert math.isnan(fracvi.integrate(longer, **cheap).mirror_error)
+    at_limit = problem.with_overrides("time.steps=1000000")
+    assert not math.isnan(fracvi.integrate(at_limit, **cheap).mirror_error)
+    with pytest.raises(fracvi.ProblemError, match='method.mirror = "sometimes" is not one of'):
+        fracvi.integrate(problem, mirror="sometimes")
     quiet = fracvi.integrate(problem, diagnostics=False)
     assert np.all(np.isnan(quiet.energy)) and math.isnan(quiet.max_balance_error)
     assert np.array_equal(quiet.x, base.x)

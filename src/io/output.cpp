@@ -325,7 +325,13 @@ void read_summary(const nlohmann::json& summary, Solution& s, const std::string&
   s.history = r.text(summary, "history");
   s.save_every = r.count(summary, "save_every");
   if (s.save_every < 1) r.fail("save_every", "= 0 is not a storage stride (at least 1)");
-  s.wall_time_seconds = r.number(summary, "wall_seconds");
+  if (summary.contains("stepping_wall_seconds")) {
+    s.wall_time_seconds = r.number(summary, "stepping_wall_seconds");
+    s.setup_seconds = r.number(summary, "setup_wall_seconds");
+  } else {  // written before set-up and stepping were reported apart: all of it was stepping
+    s.wall_time_seconds = r.number(summary, "wall_seconds");
+    s.setup_seconds = 0.0;
+  }
   s.method = r.text(summary, "method");
   const auto& order = r.at(summary, "declared_order");
   if (!order.is_number_integer())

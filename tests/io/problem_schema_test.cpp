@@ -190,6 +190,7 @@ std::vector<std::string> differences(const fracvi::ProblemSpec& a, const fracvi:
   check(a.linear_solver == b.linear_solver, "linear_solver");
   check(a.load == b.load, "load");
   check(a.error_estimate == b.error_estimate, "error_estimate");
+  check(a.mirror == b.mirror, "mirror");
   check(a.tolerance == b.tolerance, "tolerance");
   check(a.max_steps == b.max_steps, "max_steps");
   check(a.threads == b.threads, "threads");
@@ -340,6 +341,7 @@ const std::vector<Case>& cases() {
       {"method.linear_solver", "", [](Json& j) { j["method"]["linear_solver"] = "dense"; }},
       {"method.load", "", [](Json& j) { j["method"]["load"] = "moments"; }},
       {"method.error_estimate", "", [](Json& j) { j["method"]["error_estimate"] = "none"; }},
+      {"method.mirror", "", [](Json& j) { j["method"]["mirror"] = "off"; }},
       {"method.tolerance", "", [](Json& j) { j["method"]["tolerance"] = 1e-5; }},
       {"method.max_steps", "", [](Json& j) { j["method"]["max_steps"] = 123456; }},
       {"method.threads", "", [](Json& j) { j["method"]["threads"] = 3; }},
@@ -435,7 +437,7 @@ TEST(ProblemWriters, SetOverridesAreCheckedAgainstTheSchema) {
       "<built-in>: --set method.newton_tolerence: unknown key (did you mean 'newton_tolerance'?); "
       "valid in [method]: scheme, newton_tolerance, newton_max_iterations, history, "
       "history_tolerance, abs_tolerance, rel_tolerance, linear_solver, load, error_estimate, "
-      "tolerance, max_steps, threads");
+      "mirror, tolerance, max_steps, threads");
   EXPECT_EQ(message("output.every.n=1"),
             "<built-in>: --set output.every.n: unknown section [output.every]; valid sections: "
             "[model], [model.chain], [initial], [boundary], [time], [method], [output], "
