@@ -687,8 +687,10 @@ class Methods(unittest.TestCase):
                  (("model.potential=50*x1^2", "time.end=6", "time.steps=10"), "fvi-midpoint"),
                  (("model.alpha=1", "model.damping=0.2"), "fvi-bdf2"),
                  (("model.alpha=1", "model.damping=0.25"), "fvi-gl"),
-                 # checkpoints: the first candidate that can write them (fvi-lobatto3 cannot yet)
-                 (("output.checkpoint_every=100",), "fvi-midpoint"))
+                 # checkpoints: every candidate can write them, so the choice is the same
+                 (("output.checkpoint_every=100",), "fvi-lobatto3"),
+                 (("output.checkpoint_every=100", "model.potential=50*x1^2", "time.end=6",
+                   "time.steps=10"), "fvi-midpoint"))
         with tempfile.TemporaryDirectory() as tmp:
             for settings, expected in cases:
                 out = os.path.join(tmp, expected)
@@ -933,6 +935,10 @@ class Interrupts(unittest.TestCase):
             ("fvi-gl", "fast", 1_000_000, 100.0, 100_000, 7, "none", signal.SIGINT),
             ("fvi-gl", "direct", 40_000, 40.0, 2_000, 1, "richardson", signal.SIGKILL),
             ("fvi-bdf2", "fast", 1_000_000, 100.0, 100_000, 1, "none", signal.SIGINT),
+            # A block history and simplified Newton's kept stage matrix; two baselines.
+            ("fvi-lobatto3", "fast", 400_000, 100.0, 40_000, 3, "none", signal.SIGINT),
+            ("lda-midpoint", "direct", 40_000, 40.0, 2_000, 1, "none", signal.SIGKILL),
+            ("euler-implicit", "fast", 400_000, 100.0, 40_000, 1, "none", signal.SIGINT),
         ]
         for scheme, history, steps, end, checkpoint, every, estimate, sig in cases:
             with self.subTest(scheme=scheme, history=history, signal=sig.name):
@@ -1015,9 +1021,11 @@ class Interrupts(unittest.TestCase):
                      *self.problem(1000, 1.0, checkpoint=-5), "--out",
                      os.path.join(self.dir, "neg"))
         self.refused(["output.checkpoint_every = 10 is not available for method.scheme = "
-                      "\"fvi-lobatto2\"", "its stepper cannot save its state yet (schemes with "
-                      "checkpoints: fvi-gl, fvi-bdf2, fvi-midpoint); set it to 0"],
-                     "run", *self.problem(1000, 1.0, scheme="fvi-lobatto2", history="auto",
+                      "\"dopri5\"", "its stepper cannot save its state yet (schemes with "
+                      "checkpoints: fvi-gl, fvi-bdf2, fvi-midpoint, fvi-lobatto2, fvi-lobatto3, "
+                      "fvi-lobatto4, euler-explicit, euler-implicit, lda-midpoint, "
+                      "conformal-strang); set it to 0"],
+                     "run", *self.problem(1000, 1.0, scheme="dopri5", history="auto",
                                           checkpoint=10),
                      "--out", os.path.join(self.dir, "mid"))
         self.refused(["output.checkpoint_every", "cannot be combined with method.tolerance"],

@@ -90,6 +90,7 @@ struct Case {
   HistoryKind history;
   std::size_t save_every;
   const char* expected_history;  // what the run used
+  ForcingLoad load = ForcingLoad::kPointwise;
 };
 
 class CheckpointResume : public ::testing::TestWithParam<Case> {};
@@ -101,6 +102,7 @@ TEST_P(CheckpointResume, ContinuesBitForBit) {
   IntegratorOptions options;
   options.history = c.history;
   options.save_every = c.save_every;
+  options.load = c.load;
   const Solution reference = integrate(p, method, options);
   ASSERT_EQ(reference.status, Status::kSuccess) << reference.message;
   EXPECT_EQ(reference.history, c.expected_history);
@@ -115,21 +117,39 @@ TEST_P(CheckpointResume, ContinuesBitForBit) {
 
 INSTANTIATE_TEST_SUITE_P(
     Schemes, CheckpointResume,
-    ::testing::Values(Case{"fvi-gl", 0.75, HistoryKind::kDirect, 1, "direct"},
-                      Case{"fvi-gl", 0.75, HistoryKind::kFast, 1, "fast"},
-                      Case{"fvi-gl", 0.75, HistoryKind::kFast, 7, "fast"},
-                      Case{"fvi-gl", 0.5, HistoryKind::kAuto, 1, "none"},  // Lemma 5.3
-                      Case{"fvi-gl", 1.0, HistoryKind::kAuto, 3, "local"},
-                      Case{"fvi-bdf2", 0.75, HistoryKind::kDirect, 1, "direct"},
-                      Case{"fvi-bdf2", 0.75, HistoryKind::kFast, 5, "fast"},
-                      Case{"fvi-midpoint", 0.75, HistoryKind::kDirect, 1, "direct"},
-                      Case{"fvi-midpoint", 0.75, HistoryKind::kFast, 3, "fast"},
-                      Case{"fvi-midpoint", 0.5, HistoryKind::kAuto, 1, "local"}),
+    ::testing::Values(
+        Case{"fvi-gl", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"fvi-gl", 0.75, HistoryKind::kFast, 1, "fast"},
+        Case{"fvi-gl", 0.75, HistoryKind::kFast, 7, "fast"},
+        Case{"fvi-gl", 0.5, HistoryKind::kAuto, 1, "none"},  // Lemma 5.3
+        Case{"fvi-gl", 1.0, HistoryKind::kAuto, 3, "local"},
+        Case{"fvi-bdf2", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"fvi-bdf2", 0.75, HistoryKind::kFast, 5, "fast"},
+        Case{"fvi-midpoint", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"fvi-midpoint", 0.75, HistoryKind::kFast, 3, "fast"},
+        Case{"fvi-midpoint", 0.5, HistoryKind::kAuto, 1, "local"},
+        // Block histories; nonlinear U: simplified Newton's kept stage matrix.
+        Case{"fvi-lobatto3", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"fvi-lobatto3", 0.75, HistoryKind::kFast, 3, "fast"},
+        Case{"fvi-lobatto3", 0.25, HistoryKind::kFast, 1, "fast", ForcingLoad::kMoments},
+        Case{"fvi-lobatto2", 0.25, HistoryKind::kDirect, 1, "direct"},
+        Case{"fvi-lobatto2", 0.5, HistoryKind::kAuto, 1, "fast"},  // local blocks
+        Case{"fvi-lobatto4", 0.75, HistoryKind::kFast, 1, "fast"},
+        Case{"fvi-lobatto4", 0.4, HistoryKind::kDirect, 4, "direct", ForcingLoad::kMoments},
+        // Baselines.
+        Case{"euler-explicit", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"euler-explicit", 0.25, HistoryKind::kFast, 3, "fast"},
+        Case{"euler-implicit", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"euler-implicit", 0.25, HistoryKind::kFast, 1, "fast"},
+        Case{"lda-midpoint", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"lda-midpoint", 0.75, HistoryKind::kFast, 2, "fast", ForcingLoad::kMoments},
+        Case{"conformal-strang", 0.5, HistoryKind::kAuto, 1, "none"}),
     [](const auto& param_info) {
       std::string name = std::string(param_info.param.scheme) + "_" +
                          std::string(to_string(param_info.param.history)) + "_alpha" +
                          std::to_string(static_cast<int>(param_info.param.alpha * 100)) + "_every" +
-                         std::to_string(param_info.param.save_every);
+                         std::to_string(param_info.param.save_every) +
+                         (param_info.param.load == ForcingLoad::kMoments ? "_moments" : "");
       for (char& ch : name)
         if (ch == '-') ch = '_';
       return name;
@@ -200,6 +220,24 @@ TEST(CheckpointResume, AStateOfAnotherRunIsRefused) {
   finished.run();
   StateWriter writer;
   EXPECT_THROW(finished.visit_state(writer), CheckpointError);
+}
+
+TEST(CheckpointResume, ABlockHistoryOfAnotherKindOrSchemeIsRefused) {
+  const InitialValueProblem p = pendula(0.75, 240);
+  IntegratorOptions direct;
+  direct.history = HistoryKind::kDirect;
+  IntegratorOptions fast;
+  fast.history = HistoryKind::kFast;
+  const Method lobatto3 = *parse_method("fvi-lobatto3");
+  const std::string state = state_after(p, lobatto3, direct, 50);
+  EXPECT_THROW(resumed_from(state, p, lobatto3, fast), CheckpointError);
+  EXPECT_THROW(resumed_from(state, p, *parse_method("fvi-lobatto2"), direct), CheckpointError);
+  EXPECT_THROW(resumed_from(state, p, *parse_method("fvi-lobatto4"), direct), CheckpointError);
+  try {
+    resumed_from(state, p, lobatto3, fast);
+  } catch (const CheckpointError& e) {
+    EXPECT_NE(std::string(e.what()).find("block_direct"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Interrupt, StopsBeforeTheNextStepAndKeepsTheTrajectory) {
