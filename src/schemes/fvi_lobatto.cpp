@@ -47,6 +47,7 @@
 #include "fracvi/schemes/stepper.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
 #include "mass_solver.hpp"
+#include "mirror_run.hpp"
 #include "scheme_rows.hpp"
 
 namespace fracvi::internal {
@@ -760,6 +761,7 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
   };
   compare(n_steps, node);
   for (std::size_t m = n_steps; m-- > 0;) {
+    if (mirror_interrupted(options_)) return kNaN;
     const double tm = problem_.time(static_cast<double>(m));
     for (int a = 0; a < s_; ++a)
       y.times(a) = problem_.t0 + problem_.t_end - (tm + nodes_.c(a) * h_);

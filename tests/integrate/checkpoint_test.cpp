@@ -267,6 +267,34 @@ TEST(Interrupt, StopsBeforeTheNextStepAndKeepsTheTrajectory) {
   EXPECT_TRUE(std::isnan(s.mirror_error));  // no mirror run for a run that did not finish
 }
 
+// A signal during the mirror check (the backward run after the last step) stops it at its next
+// step: the run is interrupted, with the whole trajectory and no mirror error.
+TEST(Interrupt, DuringTheMirrorCheckStopsItAndKeepsTheTrajectory) {
+  for (const char* scheme : {"fvi-gl", "fvi-midpoint", "fvi-lobatto3"}) {
+    SCOPED_TRACE(scheme);
+    const Method method = *parse_method(scheme);
+    const InitialValueProblem p = pendula(0.75, 240);
+    IntegratorOptions options;
+    const Solution whole = integrate(p, method, options);
+    ASSERT_EQ(whole.status, Status::kSuccess) << whole.message;
+    ASSERT_TRUE(std::isfinite(whole.mirror_error));
+    // The forward run asks before each of its 240 steps; the mirror run before each of its own:
+    // the hook says stop at its 50th question there (and keeps saying it).
+    std::size_t polls = 0;
+    options.interrupt = [&polls, &p] { return ++polls >= p.steps + 50; };
+    const Solution s = integrate(p, method, options);
+    EXPECT_EQ(polls, p.steps + 51);  // and once more by the Integrator, to tell why it ended
+    EXPECT_EQ(s.status, Status::kInterrupted);
+    EXPECT_NE(s.message.find("interrupted during the mirror check, after all 240 steps"),
+              std::string::npos)
+        << s.message;
+    EXPECT_EQ(s.steps_done, p.steps);
+    EXPECT_TRUE(std::isnan(s.mirror_error));
+    EXPECT_TRUE(same_bits(s.x, whole.x));
+    EXPECT_TRUE(same_bits(s.v, whole.v));
+  }
+}
+
 TEST(Interrupt, BeforeTheFirstStepKeepsTheInitialState) {
   const InitialValueProblem p = pendula(0.75, 240);
   IntegratorOptions options;
