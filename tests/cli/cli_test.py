@@ -969,6 +969,76 @@ class Interrupts(unittest.TestCase):
                                  without_wall_times(self.load(reference, "summary.json")))
                 self.assertFalse(os.path.exists(os.path.join(stopped, "checkpoint.fracvi")))
 
+    def test_a_signal_during_the_mirror_check_stops_it(self):
+        # The mirror check (the backward run after the last step, as long as the forward run)
+        # polls the signal flag too. The checkpoint after step N - 1 says the forward run is one
+        # step from its end: a signal sent then arrives during the mirror check (or, on a loaded
+        # machine, just before step N: then the run stops there, and the test tries again).
+        steps = 20_000
+        problem = self.problem(steps, 20.0, history="direct", checkpoint=steps - 1)
+        for attempt in range(5):
+            out = os.path.join(self.dir, f"mirror-{attempt}")
+            code, stdout, stderr = self.interrupted(problem, out, signal.SIGINT,
+                                                    "checkpoint.fracvi")
+            self.assertEqual(code, 130, stdout + stderr)
+            summary = self.load(out, "summary.json")
+            self.assertEqual(summary["status"], "interrupted")
+            if "mirror check" in summary["message"]:
+                break
+            self.assertIn(f"interrupted after step {steps - 1} of {steps}", summary["message"])
+        else:
+            self.fail("no signal arrived during the mirror check in 5 attempts")
+        self.assertIn("status            interrupted: interrupted during the mirror check, after "
+                      f"all {steps} steps", stdout)
+        self.assertEqual(summary["steps"], steps)
+        self.assertIsNone(summary["mirror_error"])
+        trajectory = self.load(out, "trajectory.csv")
+        self.assertEqual(len(trajectory.splitlines()), steps + 2)  # header, steps 0 … N
+        # The checkpoint is kept, and --resume finishes the run (the mirror check included) with
+        # the same trajectory.
+        self.assertIn("resume            fracvi run --resume " + out, stdout)
+        r = run("run", "--resume", out, "--no-plot", "--quiet")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(self.load(out, "trajectory.csv"), trajectory)
+        summary = self.load(out, "summary.json")
+        self.assertEqual(summary["status"], "success")
+        self.assertLess(summary["mirror_error"], 1e-9)
+
+    def test_stale_temporaries_of_dead_runs_are_removed(self):
+        # A run killed while writing a file (SIGKILL in write_file_atomically) leaves
+        # <file>.tmp.<pid>.<n>, or its write probe: the next run that claims the directory — a
+        # --resume or a new run — removes those of processes that are gone, and keeps those of
+        # live ones.
+        dead = subprocess.Popen(["true"])
+        dead.wait()  # its pid names no process now
+        alive = os.getpid()
+        problem = self.problem(20_000, 20.0, history="direct", checkpoint=1_000)
+        stopped = os.path.join(self.dir, "killed")
+        code, stdout, stderr = self.interrupted(problem, stopped, signal.SIGKILL,
+                                                "checkpoint.fracvi")
+        self.assertEqual(code, -signal.SIGKILL, stdout + stderr)
+        stale = [f"checkpoint.fracvi.tmp.{dead.pid}.7", f"problem.toml.tmp.{dead.pid}.0",
+                 f".fracvi-write-test-{dead.pid}"]
+        kept = [f"checkpoint.fracvi.tmp.{alive}.3", f"notes.tmp.{dead.pid}",  # not ours
+                f"notes.tmp.{dead.pid}.x", f"notes.tmp.-{dead.pid}.1"]
+        for name in stale + kept:
+            with open(os.path.join(stopped, name), "wb") as f:
+                f.write(b"half a checkpoint")
+        r = run("run", "--resume", stopped, "--no-plot", "--quiet")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(sorted(f for f in os.listdir(stopped) if ".tmp" in f or "test" in f),
+                         sorted(kept))
+        # A new run into a directory with a dead run's temporaries.
+        fresh = os.path.join(self.dir, "fresh")
+        os.makedirs(fresh)
+        for name in stale:
+            with open(os.path.join(fresh, name), "wb") as f:
+                f.write(b"half a trajectory")
+        r = run("run", *self.problem(100, 1.0), "--out", fresh, "--no-plot", "--quiet")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(sorted(os.listdir(fresh)),
+                         ["problem.toml", "summary.json", "trajectory.csv"])
+
     def refused(self, needles, *args):
         r = run(*args)
         self.assertEqual(r.returncode, 2, r.stdout + r.stderr)
