@@ -193,6 +193,17 @@ TEST(CheckpointResume, EverySchemeWithoutCheckpointsRefusesAndTheOthersSave) {
   }
 }
 
+// method.scheme = "auto" with checkpoints (fracvi run's [output] checkpoint_every) admits only
+// schemes that can write them: every candidate can, so the choice is the one without checkpoints.
+TEST(CheckpointResume, AutoWithCheckpointsKeepsItsChoice) {
+  const auto checkpointable = [](const SchemeInfo& info) { return info.checkpoints; };
+  InitialValueProblem p = pendula(0.75, 240);
+  EXPECT_EQ(choose_scheme(p, {}, checkpointable).name(), "fvi-lobatto3");
+  EXPECT_EQ(choose_scheme(p, {}, checkpointable), choose_scheme(p));
+  p.model.alpha = 1.0;  // 2α = 2: outside the Lobatto and midpoint schemes
+  EXPECT_EQ(choose_scheme(p, {}, checkpointable), choose_scheme(p));
+}
+
 TEST(CheckpointResume, AStateOfAnotherRunIsRefused) {
   const InitialValueProblem p = pendula(0.75, 240);
   IntegratorOptions direct;
