@@ -39,7 +39,10 @@ void StateWriter::header(std::string_view name, char type, std::size_t length) {
 
 void StateWriter::doubles(std::string_view name, std::span<double> values) {
   header(name, kDoubles, values.size());
-  bytes_.append(reinterpret_cast<const char*>(values.data()), values.size_bytes());
+  // An empty block (a fast block history without tail terms) may have no data pointer at all.
+  if (!values.empty()) {
+    bytes_.append(reinterpret_cast<const char*>(values.data()), values.size_bytes());
+  }
 }
 
 void StateWriter::count(std::string_view name, std::size_t& value) {
@@ -56,6 +59,7 @@ void StateReader::read(void* out, std::size_t n, std::string_view name) {
   if (bytes_.size() - offset_ < n) {
     fail("truncated in record '" + std::string(name) + "' (corrupt or incomplete checkpoint)");
   }
+  if (n == 0) return;  // `out` may be null (an empty block), which memcpy does not allow
   std::memcpy(out, bytes_.data() + offset_, n);
   offset_ += n;
 }

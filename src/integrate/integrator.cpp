@@ -616,6 +616,15 @@ Solution Integrator::take_solution() {
     const auto start = std::chrono::steady_clock::now();
     im.sol.mirror_error = mirror_error();
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    // A signal during the mirror check (the mirror runs poll the hook, which keeps answering true
+    // once it has, options.hpp) stops it: the trajectory is complete, the check was not made.
+    if (!std::isfinite(im.sol.mirror_error) && im.interrupt_requested()) {
+      im.status = Status::kInterrupted;
+      std::snprintf(im.message.data(), im.message.size(),
+                    "interrupted during the mirror check, after all %zu steps (t = %.17g); the "
+                    "trajectory is complete, the mirror error was not computed",
+                    im.k, im.time(im.k));
+    }
   }
   if (!im.stored(im.k)) im.store();  // stopped by the caller between stored rows
   Solution s = im.result(std::move(im.sol), im.saved);

@@ -13,8 +13,10 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/file.h>
 #include <unistd.h>
 
@@ -126,6 +128,45 @@ namespace {
 // The claims of this process: lock file → (descriptor, nesting depth).
 std::mutex lock_mutex;
 std::map<std::string, std::pair<int, int>> held_locks;
+
+// The pid in a temporary's name: `<file>.tmp.<pid>.<n>` (write_file_atomically) or
+// `.fracvi-write-test-<pid>` (prepare_output_directory's probe); 0 for any other name.
+pid_t temporary_owner(const std::string& name) {
+  // The value of a string of decimal digits, −1 for anything else.
+  const auto number = [](std::string_view text) -> long long {
+    long long value = -1;
+    const auto r = std::from_chars(text.data(), text.data() + text.size(), value);
+    return !text.empty() && r.ec == std::errc() && r.ptr == text.data() + text.size() ? value : -1;
+  };
+  const auto owner = [](long long pid) {
+    return pid > 0 && pid <= std::numeric_limits<pid_t>::max() ? static_cast<pid_t>(pid) : 0;
+  };
+  constexpr std::string_view kProbe = ".fracvi-write-test-", kTemporary = ".tmp.";
+  const std::string_view text(name);
+  if (text.starts_with(kProbe)) return owner(number(text.substr(kProbe.size())));
+  const std::size_t at = text.rfind(kTemporary);
+  if (at == std::string_view::npos || at == 0) return 0;
+  const std::string_view tail = text.substr(at + kTemporary.size());  // <pid>.<n>
+  const std::size_t dot = tail.find('.');
+  if (dot == std::string_view::npos || number(tail.substr(dot + 1)) < 0) return 0;
+  return owner(number(tail.substr(0, dot)));
+}
+
+// A run killed while writing (SIGKILL, power loss) leaves its temporary: removed by the next run
+// that claims the directory, if the process that wrote it is gone. Holding the directory's lock,
+// no other fracvi run writes into it; the pid test keeps the temporaries of a live process (one
+// writing without the lock) — a pid reused since by an unrelated process only keeps a dead
+// temporary a while longer. Best effort: what cannot be listed or removed is left.
+void remove_stale_temporaries(const std::filesystem::path& dir) {
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const pid_t pid = temporary_owner(it->path().filename().string());
+    if (pid == 0 || pid == ::getpid()) continue;
+    if (::kill(pid, 0) == 0 || errno != ESRCH) continue;  // alive (or not ours to ask)
+    std::error_code ignored;
+    if (it->is_regular_file(ignored)) std::filesystem::remove(it->path(), ignored);
+  }
+}
 }  // namespace
 
 OutputLock::OutputLock(const std::filesystem::path& dir) {
@@ -161,6 +202,7 @@ OutputLock::OutputLock(const std::filesystem::path& dir) {
   }
   held_locks.emplace(path, std::make_pair(fd, 1));
   key_ = path;
+  remove_stale_temporaries(dir);
 }
 
 OutputLock::~OutputLock() {

@@ -245,6 +245,12 @@ std::vector<std::string> parameter_values(const std::string& path, const Json& s
     for (const double x : numbers) {
       if (integer) {
         if (!std::isfinite(x)) throw SweepError(where + ": " + number_text(x) + " for " + path);
+        // llround beyond the 64-bit integers is unspecified (1e30 became -2^63, "must be
+        // positive"): refused with the value instead.
+        if (!(std::abs(x) < 0x1p63)) {
+          throw SweepError(where + ": " + number_text(x) + " for the integer field " + path +
+                           " is beyond the 64-bit integers");
+        }
         out.push_back(std::to_string(std::llround(x)));
       } else {
         out.push_back(number_text(x));

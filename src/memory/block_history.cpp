@@ -6,6 +6,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -102,6 +103,19 @@ void DirectBlockHistory::sum(Eigen::Ref<Eigen::MatrixXd> out) const {
       BlockWeightSequence{weights_.data().data(), static_cast<std::size_t>(s * s)}, k,
       [&](std::size_t j) { return BlockValueRef{values_.data() + j * block}; },
       BlockAccumulator{out.data(), out.outerStride(), dimension_, s});
+}
+
+void DirectBlockHistory::visit_state(StateArchive& archive) {
+  archive.expect("block_direct.dimension", static_cast<std::size_t>(dimension_));
+  archive.expect("block_direct.stages", static_cast<std::size_t>(quadrature_.stages));
+  archive.expect("block_direct.capacity", capacity_);
+  archive.count("block_direct.size", size_);
+  if (size_ > capacity_) {
+    throw CheckpointError("checkpoint record 'block_direct.size' exceeds capacity");
+  }
+  // Only the pushed blocks: the rest of the buffer is never read before it is pushed again.
+  const auto block = static_cast<std::size_t>(dimension_ * quadrature_.stages);
+  archive.doubles("block_direct.values", std::span<double>(values_.data(), size_ * block));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -227,6 +241,23 @@ void FastBlockHistory::set_threads(int threads) {
   const Eigen::Index d = sum_.rows(), terms = decay_.size();
   internal::start_threads(internal::team_size(
       threads_, d * (terms * (2 * stages_ + 1) + window_ * stages_ * stages_), kParallelWork));
+}
+
+void FastBlockHistory::visit_state(StateArchive& archive) {
+  // The tail's fit is rebuilt by the constructor from the same options (the shared cache); its
+  // sizes are checked so that a checkpoint of another fit is refused.
+  archive.expect("block_fast.dimension", static_cast<std::size_t>(sum_.rows()));
+  archive.expect("block_fast.stages", static_cast<std::size_t>(stages_));
+  archive.expect("block_fast.capacity", capacity_);
+  archive.expect("block_fast.window", static_cast<std::size_t>(window_));
+  archive.expect("block_fast.terms", static_cast<std::size_t>(decay_.size()));
+  archive.count("block_fast.size", size_);
+  if (size_ > capacity_) {
+    throw CheckpointError("checkpoint record 'block_fast.size' exceeds capacity");
+  }
+  archive.dense("block_fast.ring", ring_);
+  archive.dense("block_fast.recursions", state_);
+  archive.dense("block_fast.sum", sum_);
 }
 
 void FastBlockHistory::clear() {

@@ -164,6 +164,11 @@ void validate(const InitialValueProblem& problem) {
          " must be finite and greater than t0 = " + fmt(problem.t0));
   }
   if (problem.steps < 1) fail("steps = 0, must be >= 1");
+  if (!std::isfinite(problem.t_end - problem.t0)) {
+    fail("time.end - time.start = " + fmt(problem.t_end - problem.t0) +
+         " (t0 = " + fmt(problem.t0) + ", t_end = " + fmt(problem.t_end) +
+         ") overflows: the interval must have a finite length");
+  }
   const double h = problem.step_size();
   if (!(h > 0.0) || !std::isfinite(h) || problem.t0 + h == problem.t0) {
     fail("steps = " + std::to_string(problem.steps) + " gives step size h = " + fmt(h) +

@@ -13,6 +13,7 @@
 #include <functional>
 #include <string>
 
+#include "fracvi/core/state_archive.hpp"
 #include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/schemes/registry.hpp"
 
@@ -66,6 +67,8 @@ class ExternalWork {
   explicit ExternalWork(const InitialValueProblem& problem);
   /// The work put in over step k (x_k → x_{k+1}); f(t_k) is kept from the previous call.
   double step(std::size_t k, const Eigen::VectorXd& x_k, const Eigen::VectorXd& x_next);
+  /// Saves or restores f(t_k), the value kept from the previous call (core/state_archive.hpp).
+  void visit_state(StateArchive& archive) { archive.dense("external.f", f_now_); }
 
  private:
   const InitialValueProblem& problem_;

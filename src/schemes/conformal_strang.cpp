@@ -86,6 +86,16 @@ class ConformalStrangStepper final : public Stepper {
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return LinearSolver::kDense; }
+  void visit_state(StateArchive& archive) override {
+    visit_step_index(archive, d_, problem_.steps, k_);
+    archive.dense("conformal_strang.x", x_);
+    archive.dense("conformal_strang.v", v_);
+    archive.dense("conformal_strang.p", p_);
+    archive.dense("conformal_strang.acceleration", accel_);  // kept from step to step (FSAL)
+    archive.number("conformal_strang.work", work_);
+    archive.number("conformal_strang.supplied", supplied_);
+    external_.visit_state(archive);
+  }
 
  private:
   // accel = M⁻¹(f(t) − ∇U(x, t)).
@@ -201,6 +211,7 @@ const SchemeInfo kConformalStrang{
     .fast_history = false,
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
     .forcing_moments = false,
+    .checkpoints = true,
     .applies_to = "2alpha = 1 (or R = 0)",
     .stability_rule = "Verlet's h omega_max < 2 (with damping: spectral radius of the step <= 1)",
     .declared_order = [](const MechanicalModel&) { return 2; },

@@ -91,6 +91,16 @@ class EulerStepper final : public Stepper {
   [[nodiscard]] std::string_view history_kind() const override {
     return history_ ? history_->kind() : "none";
   }
+  void visit_state(StateArchive& archive) override {
+    visit_step_index(archive, d_, problem_.steps, k_);
+    archive.dense("euler.x", x_);
+    archive.dense("euler.v", v_);
+    archive.dense("euler.p", p_);
+    archive.number("euler.work", work_);
+    archive.number("euler.supplied", supplied_);
+    external_.visit_state(archive);
+    archive.optional("euler.history", history_.get());
+  }
 
  private:
   // z̃ = x − x_0 or v − v_0 (Caputo, γ > 0), else x or v.
@@ -289,6 +299,7 @@ const SchemeInfo kEulerExplicit{
     .fast_history = true,
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
     .forcing_moments = false,
+    .checkpoints = true,
     .applies_to = "every model (no stable h without damping)",
     .stability_rule =
         "all characteristic roots inside the unit disc, computed for the problem's M, R and "
@@ -315,6 +326,7 @@ const SchemeInfo kEulerImplicit{
     .fast_history = true,
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
     .forcing_moments = false,
+    .checkpoints = true,
     .applies_to = "every model",
     .stability_rule = "stable for every h (implicit damping and stiffness)",
     .declared_order = [](const MechanicalModel&) { return 1; },

@@ -47,6 +47,7 @@
 #include "fracvi/schemes/stepper.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
 #include "mass_solver.hpp"
+#include "mirror_run.hpp"
 #include "scheme_rows.hpp"
 
 namespace fracvi::internal {
@@ -399,6 +400,8 @@ class LobattoStepper final : public Stepper {
     for (Eigen::VectorXd* v : {&load_v_, &load_x_, &work_v_, &work_x_}) v->setZero(s_);
     residual_.setZero((s_ - 1) * d_);
     solve_scratch_.setZero((s_ - 1) * d_);
+    factored_stages_.setZero(d_, s_);
+    factored_times_.setZero(s_);
     if (damped_) {
       damping_.multiply(problem.x0, r_x0_);
       damping_.multiply(problem.v0, r_v0_);
@@ -442,6 +445,32 @@ class LobattoStepper final : public Stepper {
     return n_ > 0 ? &cur_.stages : nullptr;
   }
 
+  void visit_state(StateArchive& archive) override {
+    visit_step_index(archive, d_, problem_.steps, n_);
+    archive.expect("lobatto.stages", static_cast<std::size_t>(s_));
+    archive.dense("lobatto.x", x_);
+    archive.dense("lobatto.v", v_);  // M⁻¹p_n, Newton's guess
+    archive.dense("lobatto.p", p_);
+    archive.dense("lobatto.stage_values", cur_.stages);  // stage_values() of the last interval
+    archive.number("lobatto.work", work_);
+    archive.number("lobatto.supplied", supplied_);
+    if (!linear_) {
+      // Simplified Newton keeps the stage matrix of an earlier iterate, possibly of an earlier
+      // step: it is formed again at the same stages and times (the same bits), so that the
+      // resumed iterates are the uninterrupted ones.
+      archive.flag("lobatto.factored", factored_);
+      archive.dense("lobatto.factored_stages", factored_stages_);
+      archive.dense("lobatto.factored_times", factored_times_);
+      if (archive.loading() && factored_ &&
+          !stage_matrix_.factor(factored_stages_, factored_times_)) {
+        throw CheckpointError(
+            "checkpoint record 'lobatto.factored_stages': the stage matrix "
+            "cannot be factored there (corrupt)");
+      }
+    }
+    archive.optional("lobatto.history", history_.get());
+  }
+
  private:
   [[nodiscard]] std::string_view name() const {
     return s_ == 2 ? "fvi-lobatto2" : (s_ == 3 ? "fvi-lobatto3" : "fvi-lobatto4");
@@ -473,8 +502,10 @@ class LobattoStepper final : public Stepper {
   StageMatrix stage_matrix_;
   bool linear_;
   bool factored_ =
-      false;        // nonlinear U: the stage matrix holds a factorisation (simplified Newton)
-  double h_power_;  // h^{−β}
+      false;  // nonlinear U: the stage matrix holds a factorisation (simplified Newton) …
+  Eigen::MatrixXd factored_stages_;  // … formed at these stages (d × s)
+  Eigen::VectorXd factored_times_;   // … and stage times (for a checkpoint to form it again)
+  double h_power_;                   // h^{−β}
   bool split_ = false;
   std::unique_ptr<PowerMoments> velocity_load_, position_load_;
   std::unique_ptr<ForcingMoments> forcing_load_;
@@ -583,6 +614,8 @@ Status LobattoStepper::advance() {
     residual_.head(d_) -= p_;
     if (!residual_.allFinite()) return fail(Status::kNonFinite, "non-finite stage residual");
     if (!linear_ && refactor) {
+      factored_stages_ = cur_.stages;
+      factored_times_ = cur_.times;
       factored_ = stage_matrix_.factor(cur_.stages, cur_.times);
       if (!factored_) {
         return fail(Status::kNewtonFailure,
@@ -728,6 +761,7 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
   };
   compare(n_steps, node);
   for (std::size_t m = n_steps; m-- > 0;) {
+    if (mirror_interrupted(options_)) return kNaN;
     const double tm = problem_.time(static_cast<double>(m));
     for (int a = 0; a < s_; ++a)
       y.times(a) = problem_.t0 + problem_.t_end - (tm + nodes_.c(a) * h_);
@@ -966,6 +1000,7 @@ SchemeInfo lobatto_row(std::string_view name, std::string_view summary, std::str
       .fast_history = true,
       .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
       .forcing_moments = true,
+      .checkpoints = true,
       .applies_to = "0 <= 2alpha < 2",
       .stability_rule = stability_rule,
       .declared_order = [](const MechanicalModel& model) { return lobatto_order(S, model); },

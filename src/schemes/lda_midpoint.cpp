@@ -87,6 +87,17 @@ class LdaMidpointStepper final : public Stepper {
   [[nodiscard]] std::string_view history_kind() const override {
     return memory_ ? memory_->kind() : "none";
   }
+  void visit_state(StateArchive& archive) override {
+    visit_step_index(archive, d_, problem_.steps, k_);
+    archive.dense("lda_midpoint.x", x_cur_);
+    archive.dense("lda_midpoint.v", v_cur_);
+    archive.dense("lda_midpoint.p", p_);
+    archive.dense("lda_midpoint.u", u_);           // x̃_k, the memory's last value
+    archive.dense("lda_midpoint.increment", dx_);  // Newton's predictor Δ_{k−1}
+    archive.number("lda_midpoint.work", work_);
+    archive.number("lda_midpoint.supplied", supplied_);
+    archive.optional("lda_midpoint.memory", memory_.get());
+  }
 
  private:
   Status advance() override {
@@ -190,6 +201,7 @@ const SchemeInfo kLdaMidpoint{
     .fast_history = true,   // two GL sums (orders 2α and 1 − 2α, lag 1), as fvi-midpoint
     .momentum_quadrature = CqScheme::kTrapezoidal,
     .forcing_moments = true,  // method.load = "moments": the cell average of f
+    .checkpoints = true,
     .applies_to = "0 <= 2alpha < 2",
     .stability_rule =
         "stable for every h (implicit damping; the Tustin image of the continuous "

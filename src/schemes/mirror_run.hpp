@@ -18,8 +18,9 @@
 //   void known(std::size_t k, const Eigen::VectorXd& y_k, Eigen::VectorXd& d);  // d = D^known_k
 //   void accept(std::size_t k, const Eigen::VectorXd& y_km1, const Eigen::VectorXd& y_k);
 // (accept() after y_{k−1} is solved). The result is max ‖y_{k−1} − x_{N−k+1}‖_∞ over the stored
-// rows (row i of x_rows is x at step steps[i], ascending), or NaN when Newton fails or a callback
-// throws (the check is then unavailable, the run not invalid).
+// rows (row i of x_rows is x at step steps[i], ascending), or NaN when Newton fails, a callback
+// throws (the check is then unavailable, the run not invalid) or the run's interrupt hook asks to
+// stop.
 #pragma once
 
 #include <Eigen/Dense>
@@ -33,6 +34,18 @@
 #include "fracvi/solve/midpoint_newton.hpp"
 
 namespace fracvi::internal {
+
+/// The run's interrupt hook (IntegratorOptions::interrupt), polled by the mirror runs before each
+/// of their steps: a signal during the mirror check ends it at once (NaN), and the Integrator then
+/// reports the run as interrupted. A hook that throws is taken as a request to stop.
+inline bool mirror_interrupted(const IntegratorOptions& options) noexcept {
+  if (!options.interrupt) return false;
+  try {
+    return options.interrupt();
+  } catch (...) {
+    return true;
+  }
+}
 
 template <class Damping>
 double backward_mirror_run(const InitialValueProblem& problem, const IntegratorOptions& options,
@@ -57,6 +70,7 @@ double backward_mirror_run(const InitialValueProblem& problem, const IntegratorO
     std::size_t next_row = 0;
     double err = 0.0;
     for (std::size_t kk = n - 1; kk >= 1; --kk) {
+      if (mirror_interrupted(options)) return kNaN;
       damping.known(kk, y_k, known);
       // ȳ_k = (y_{k+1} + y_k)/2 mirrors x̄ at t_{N−k−½}; ȳ_{k−1} mirrors x̄ at t_{N−k+½}.
       const double tau_known = half_time(n - kk - 1), tau_new = half_time(n - kk);

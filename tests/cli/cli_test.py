@@ -708,8 +708,10 @@ class Methods(unittest.TestCase):
                  (("model.potential=50*x1^2", "time.end=6", "time.steps=10"), "fvi-midpoint"),
                  (("model.alpha=1", "model.damping=0.2"), "fvi-bdf2"),
                  (("model.alpha=1", "model.damping=0.25"), "fvi-gl"),
-                 # checkpoints: the first candidate that can write them (fvi-lobatto3 cannot yet)
-                 (("output.checkpoint_every=100",), "fvi-midpoint"))
+                 # checkpoints: every candidate can write them, so the choice is the same
+                 (("output.checkpoint_every=100",), "fvi-lobatto3"),
+                 (("output.checkpoint_every=100", "model.potential=50*x1^2", "time.end=6",
+                   "time.steps=10"), "fvi-midpoint"))
         with tempfile.TemporaryDirectory() as tmp:
             for settings, expected in cases:
                 out = os.path.join(tmp, expected)
@@ -954,6 +956,10 @@ class Interrupts(unittest.TestCase):
             ("fvi-gl", "fast", 1_000_000, 100.0, 100_000, 7, "none", signal.SIGINT),
             ("fvi-gl", "direct", 40_000, 40.0, 2_000, 1, "richardson", signal.SIGKILL),
             ("fvi-bdf2", "fast", 1_000_000, 100.0, 100_000, 1, "none", signal.SIGINT),
+            # A block history and simplified Newton's kept stage matrix; two baselines.
+            ("fvi-lobatto3", "fast", 400_000, 100.0, 40_000, 3, "none", signal.SIGINT),
+            ("lda-midpoint", "direct", 40_000, 40.0, 2_000, 1, "none", signal.SIGKILL),
+            ("euler-implicit", "fast", 400_000, 100.0, 40_000, 1, "none", signal.SIGINT),
         ]
         for scheme, history, steps, end, checkpoint, every, estimate, sig in cases:
             with self.subTest(scheme=scheme, history=history, signal=sig.name):
@@ -983,6 +989,76 @@ class Interrupts(unittest.TestCase):
                 self.assertEqual(without_wall_times(self.load(stopped, "summary.json")),
                                  without_wall_times(self.load(reference, "summary.json")))
                 self.assertFalse(os.path.exists(os.path.join(stopped, "checkpoint.fracvi")))
+
+    def test_a_signal_during_the_mirror_check_stops_it(self):
+        # The mirror check (the backward run after the last step, as long as the forward run)
+        # polls the signal flag too. The checkpoint after step N - 1 says the forward run is one
+        # step from its end: a signal sent then arrives during the mirror check (or, on a loaded
+        # machine, just before step N: then the run stops there, and the test tries again).
+        steps = 20_000
+        problem = self.problem(steps, 20.0, history="direct", checkpoint=steps - 1)
+        for attempt in range(5):
+            out = os.path.join(self.dir, f"mirror-{attempt}")
+            code, stdout, stderr = self.interrupted(problem, out, signal.SIGINT,
+                                                    "checkpoint.fracvi")
+            self.assertEqual(code, 130, stdout + stderr)
+            summary = self.load(out, "summary.json")
+            self.assertEqual(summary["status"], "interrupted")
+            if "mirror check" in summary["message"]:
+                break
+            self.assertIn(f"interrupted after step {steps - 1} of {steps}", summary["message"])
+        else:
+            self.fail("no signal arrived during the mirror check in 5 attempts")
+        self.assertIn("status            interrupted: interrupted during the mirror check, after "
+                      f"all {steps} steps", stdout)
+        self.assertEqual(summary["steps"], steps)
+        self.assertIsNone(summary["mirror_error"])
+        trajectory = self.load(out, "trajectory.csv")
+        self.assertEqual(len(trajectory.splitlines()), steps + 2)  # header, steps 0 … N
+        # The checkpoint is kept, and --resume finishes the run (the mirror check included) with
+        # the same trajectory.
+        self.assertIn("resume            fracvi run --resume " + out, stdout)
+        r = run("run", "--resume", out, "--no-plot", "--quiet")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(self.load(out, "trajectory.csv"), trajectory)
+        summary = self.load(out, "summary.json")
+        self.assertEqual(summary["status"], "success")
+        self.assertLess(summary["mirror_error"], 1e-9)
+
+    def test_stale_temporaries_of_dead_runs_are_removed(self):
+        # A run killed while writing a file (SIGKILL in write_file_atomically) leaves
+        # <file>.tmp.<pid>.<n>, or its write probe: the next run that claims the directory — a
+        # --resume or a new run — removes those of processes that are gone, and keeps those of
+        # live ones.
+        dead = subprocess.Popen(["true"])
+        dead.wait()  # its pid names no process now
+        alive = os.getpid()
+        problem = self.problem(20_000, 20.0, history="direct", checkpoint=1_000)
+        stopped = os.path.join(self.dir, "killed")
+        code, stdout, stderr = self.interrupted(problem, stopped, signal.SIGKILL,
+                                                "checkpoint.fracvi")
+        self.assertEqual(code, -signal.SIGKILL, stdout + stderr)
+        stale = [f"checkpoint.fracvi.tmp.{dead.pid}.7", f"problem.toml.tmp.{dead.pid}.0",
+                 f".fracvi-write-test-{dead.pid}"]
+        kept = [f"checkpoint.fracvi.tmp.{alive}.3", f"notes.tmp.{dead.pid}",  # not ours
+                f"notes.tmp.{dead.pid}.x", f"notes.tmp.-{dead.pid}.1"]
+        for name in stale + kept:
+            with open(os.path.join(stopped, name), "wb") as f:
+                f.write(b"half a checkpoint")
+        r = run("run", "--resume", stopped, "--no-plot", "--quiet")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(sorted(f for f in os.listdir(stopped) if ".tmp" in f or "test" in f),
+                         sorted(kept))
+        # A new run into a directory with a dead run's temporaries.
+        fresh = os.path.join(self.dir, "fresh")
+        os.makedirs(fresh)
+        for name in stale:
+            with open(os.path.join(fresh, name), "wb") as f:
+                f.write(b"half a trajectory")
+        r = run("run", *self.problem(100, 1.0), "--out", fresh, "--no-plot", "--quiet")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(sorted(os.listdir(fresh)),
+                         ["problem.toml", "summary.json", "trajectory.csv"])
 
     def refused(self, needles, *args):
         r = run(*args)
@@ -1036,9 +1112,11 @@ class Interrupts(unittest.TestCase):
                      *self.problem(1000, 1.0, checkpoint=-5), "--out",
                      os.path.join(self.dir, "neg"))
         self.refused(["output.checkpoint_every = 10 is not available for method.scheme = "
-                      "\"fvi-lobatto2\"", "its stepper cannot save its state yet (schemes with "
-                      "checkpoints: fvi-gl, fvi-bdf2, fvi-midpoint); set it to 0"],
-                     "run", *self.problem(1000, 1.0, scheme="fvi-lobatto2", history="auto",
+                      "\"dopri5\"", "its stepper cannot save its state yet (schemes with "
+                      "checkpoints: fvi-gl, fvi-bdf2, fvi-midpoint, fvi-lobatto2, fvi-lobatto3, "
+                      "fvi-lobatto4, euler-explicit, euler-implicit, lda-midpoint, "
+                      "conformal-strang); set it to 0"],
+                     "run", *self.problem(1000, 1.0, scheme="dopri5", history="auto",
                                           checkpoint=10),
                      "--out", os.path.join(self.dir, "mid"))
         self.refused(["output.checkpoint_every", "cannot be combined with method.tolerance"],

@@ -90,6 +90,7 @@ struct Case {
   HistoryKind history;
   std::size_t save_every;
   const char* expected_history;  // what the run used
+  ForcingLoad load = ForcingLoad::kPointwise;
 };
 
 class CheckpointResume : public ::testing::TestWithParam<Case> {};
@@ -101,6 +102,7 @@ TEST_P(CheckpointResume, ContinuesBitForBit) {
   IntegratorOptions options;
   options.history = c.history;
   options.save_every = c.save_every;
+  options.load = c.load;
   const Solution reference = integrate(p, method, options);
   ASSERT_EQ(reference.status, Status::kSuccess) << reference.message;
   EXPECT_EQ(reference.history, c.expected_history);
@@ -115,21 +117,39 @@ TEST_P(CheckpointResume, ContinuesBitForBit) {
 
 INSTANTIATE_TEST_SUITE_P(
     Schemes, CheckpointResume,
-    ::testing::Values(Case{"fvi-gl", 0.75, HistoryKind::kDirect, 1, "direct"},
-                      Case{"fvi-gl", 0.75, HistoryKind::kFast, 1, "fast"},
-                      Case{"fvi-gl", 0.75, HistoryKind::kFast, 7, "fast"},
-                      Case{"fvi-gl", 0.5, HistoryKind::kAuto, 1, "none"},  // Lemma 5.3
-                      Case{"fvi-gl", 1.0, HistoryKind::kAuto, 3, "local"},
-                      Case{"fvi-bdf2", 0.75, HistoryKind::kDirect, 1, "direct"},
-                      Case{"fvi-bdf2", 0.75, HistoryKind::kFast, 5, "fast"},
-                      Case{"fvi-midpoint", 0.75, HistoryKind::kDirect, 1, "direct"},
-                      Case{"fvi-midpoint", 0.75, HistoryKind::kFast, 3, "fast"},
-                      Case{"fvi-midpoint", 0.5, HistoryKind::kAuto, 1, "local"}),
+    ::testing::Values(
+        Case{"fvi-gl", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"fvi-gl", 0.75, HistoryKind::kFast, 1, "fast"},
+        Case{"fvi-gl", 0.75, HistoryKind::kFast, 7, "fast"},
+        Case{"fvi-gl", 0.5, HistoryKind::kAuto, 1, "none"},  // Lemma 5.3
+        Case{"fvi-gl", 1.0, HistoryKind::kAuto, 3, "local"},
+        Case{"fvi-bdf2", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"fvi-bdf2", 0.75, HistoryKind::kFast, 5, "fast"},
+        Case{"fvi-midpoint", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"fvi-midpoint", 0.75, HistoryKind::kFast, 3, "fast"},
+        Case{"fvi-midpoint", 0.5, HistoryKind::kAuto, 1, "local"},
+        // Block histories; nonlinear U: simplified Newton's kept stage matrix.
+        Case{"fvi-lobatto3", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"fvi-lobatto3", 0.75, HistoryKind::kFast, 3, "fast"},
+        Case{"fvi-lobatto3", 0.25, HistoryKind::kFast, 1, "fast", ForcingLoad::kMoments},
+        Case{"fvi-lobatto2", 0.25, HistoryKind::kDirect, 1, "direct"},
+        Case{"fvi-lobatto2", 0.5, HistoryKind::kAuto, 1, "fast"},  // local blocks
+        Case{"fvi-lobatto4", 0.75, HistoryKind::kFast, 1, "fast"},
+        Case{"fvi-lobatto4", 0.4, HistoryKind::kDirect, 4, "direct", ForcingLoad::kMoments},
+        // Baselines.
+        Case{"euler-explicit", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"euler-explicit", 0.25, HistoryKind::kFast, 3, "fast"},
+        Case{"euler-implicit", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"euler-implicit", 0.25, HistoryKind::kFast, 1, "fast"},
+        Case{"lda-midpoint", 0.75, HistoryKind::kDirect, 1, "direct"},
+        Case{"lda-midpoint", 0.75, HistoryKind::kFast, 2, "fast", ForcingLoad::kMoments},
+        Case{"conformal-strang", 0.5, HistoryKind::kAuto, 1, "none"}),
     [](const auto& param_info) {
       std::string name = std::string(param_info.param.scheme) + "_" +
                          std::string(to_string(param_info.param.history)) + "_alpha" +
                          std::to_string(static_cast<int>(param_info.param.alpha * 100)) + "_every" +
-                         std::to_string(param_info.param.save_every);
+                         std::to_string(param_info.param.save_every) +
+                         (param_info.param.load == ForcingLoad::kMoments ? "_moments" : "");
       for (char& ch : name)
         if (ch == '-') ch = '_';
       return name;
@@ -173,6 +193,17 @@ TEST(CheckpointResume, EverySchemeWithoutCheckpointsRefusesAndTheOthersSave) {
   }
 }
 
+// method.scheme = "auto" with checkpoints (fracvi run's [output] checkpoint_every) admits only
+// schemes that can write them: every candidate can, so the choice is the one without checkpoints.
+TEST(CheckpointResume, AutoWithCheckpointsKeepsItsChoice) {
+  const auto checkpointable = [](const SchemeInfo& info) { return info.checkpoints; };
+  InitialValueProblem p = pendula(0.75, 240);
+  EXPECT_EQ(choose_scheme(p, {}, checkpointable).name(), "fvi-lobatto3");
+  EXPECT_EQ(choose_scheme(p, {}, checkpointable), choose_scheme(p));
+  p.model.alpha = 1.0;  // 2α = 2: outside the Lobatto and midpoint schemes
+  EXPECT_EQ(choose_scheme(p, {}, checkpointable), choose_scheme(p));
+}
+
 TEST(CheckpointResume, AStateOfAnotherRunIsRefused) {
   const InitialValueProblem p = pendula(0.75, 240);
   IntegratorOptions direct;
@@ -202,6 +233,24 @@ TEST(CheckpointResume, AStateOfAnotherRunIsRefused) {
   EXPECT_THROW(finished.visit_state(writer), CheckpointError);
 }
 
+TEST(CheckpointResume, ABlockHistoryOfAnotherKindOrSchemeIsRefused) {
+  const InitialValueProblem p = pendula(0.75, 240);
+  IntegratorOptions direct;
+  direct.history = HistoryKind::kDirect;
+  IntegratorOptions fast;
+  fast.history = HistoryKind::kFast;
+  const Method lobatto3 = *parse_method("fvi-lobatto3");
+  const std::string state = state_after(p, lobatto3, direct, 50);
+  EXPECT_THROW(resumed_from(state, p, lobatto3, fast), CheckpointError);
+  EXPECT_THROW(resumed_from(state, p, *parse_method("fvi-lobatto2"), direct), CheckpointError);
+  EXPECT_THROW(resumed_from(state, p, *parse_method("fvi-lobatto4"), direct), CheckpointError);
+  try {
+    resumed_from(state, p, lobatto3, fast);
+  } catch (const CheckpointError& e) {
+    EXPECT_NE(std::string(e.what()).find("block_direct"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Interrupt, StopsBeforeTheNextStepAndKeepsTheTrajectory) {
   const InitialValueProblem p = pendula(0.75, 240);
   IntegratorOptions options;
@@ -227,6 +276,34 @@ TEST(Interrupt, StopsBeforeTheNextStepAndKeepsTheTrajectory) {
   for (Eigen::Index i = 0; i < 4; ++i) EXPECT_EQ(s.x.row(i), whole.x.row(i));
   EXPECT_TRUE(s.x.allFinite());
   EXPECT_TRUE(std::isnan(s.mirror_error));  // no mirror run for a run that did not finish
+}
+
+// A signal during the mirror check (the backward run after the last step) stops it at its next
+// step: the run is interrupted, with the whole trajectory and no mirror error.
+TEST(Interrupt, DuringTheMirrorCheckStopsItAndKeepsTheTrajectory) {
+  for (const char* scheme : {"fvi-gl", "fvi-midpoint", "fvi-lobatto3"}) {
+    SCOPED_TRACE(scheme);
+    const Method method = *parse_method(scheme);
+    const InitialValueProblem p = pendula(0.75, 240);
+    IntegratorOptions options;
+    const Solution whole = integrate(p, method, options);
+    ASSERT_EQ(whole.status, Status::kSuccess) << whole.message;
+    ASSERT_TRUE(std::isfinite(whole.mirror_error));
+    // The forward run asks before each of its 240 steps; the mirror run before each of its own:
+    // the hook says stop at its 50th question there (and keeps saying it).
+    std::size_t polls = 0;
+    options.interrupt = [&polls, &p] { return ++polls >= p.steps + 50; };
+    const Solution s = integrate(p, method, options);
+    EXPECT_EQ(polls, p.steps + 51);  // and once more by the Integrator, to tell why it ended
+    EXPECT_EQ(s.status, Status::kInterrupted);
+    EXPECT_NE(s.message.find("interrupted during the mirror check, after all 240 steps"),
+              std::string::npos)
+        << s.message;
+    EXPECT_EQ(s.steps_done, p.steps);
+    EXPECT_TRUE(std::isnan(s.mirror_error));
+    EXPECT_TRUE(same_bits(s.x, whole.x));
+    EXPECT_TRUE(same_bits(s.v, whole.v));
+  }
 }
 
 TEST(Interrupt, BeforeTheFirstStepKeepsTheInitialState) {

@@ -140,6 +140,51 @@ TEST(ProblemFile, IntegersAreReadExactlyOrRefused) {
       9007199254740992.0);
 }
 
+// Inputs whose conversion to an integer would overflow — undefined behaviour, which the asan
+// preset's -fsanitize=float-cast-overflow traps (scripts/sanitize.sh) — are refused by value before
+// any conversion: step counts beyond the limit (a tiny or subnormal time.step, a span of 1e19 or
+// one that overflows to inf, steps near 2^63), integer fields given as floats, and dimensions
+// whose storage alone exceeds any memory.
+TEST(ProblemFile, CountsThatWouldOverflowAreRefusedBeforeConversion) {
+  const std::string by_step = with("steps = 20", "step = 1");
+  const auto expect_refused = [](const std::string& message, const std::string& needle) {
+    EXPECT_NE(message.find(needle), std::string::npos) << message;
+  };
+  expect_refused(error_of(with("steps = 20", "step = 1e-300")),
+                 "p.toml: time.step = 1e-300 divides [0, 2] into 2e+300 steps, more than the limit "
+                 "of 2000000000");
+  expect_refused(error_of(with("steps = 20", "step = 5e-324")),
+                 "time.step = 5e-324 divides [0, 2] into inf steps");
+  expect_refused(error_of(by_step, {"time.end=1e19"}), "into 1e+19 steps, more than the limit");
+  expect_refused(error_of(by_step, {"time.start=-1e308", "time.end=1e308"}),
+                 "into inf steps, more than the limit");
+  expect_refused(error_of(kBase, {"time.steps=9223372036854775807"}),
+                 "time.steps = 9223372036854775807 is more than the limit of 2000000000");
+  expect_refused(error_of(kBase, {"time.steps=-9223372036854775808"}),
+                 "time.steps = -9223372036854775808 must be positive");
+  for (const char* field : {"model.dim", "time.steps", "output.every", "output.checkpoint_every",
+                            "method.max_steps", "method.threads"}) {
+    expect_refused(error_of(kBase, {std::string(field) + "=1e19"}),
+                   std::string(field) + " = 1e+19 must be an integer, got a number");
+  }
+  // The storage of 10^12 and 2^62 degrees of freedom is refused with the number, before any
+  // vector is allocated; a span that overflows, by prepare_run (every check before step 1).
+  const auto prepare_error = [](std::vector<std::string> overrides) {
+    try {
+      prepare_run(parse(kBase, std::move(overrides)));
+    } catch (const ProblemFileError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  expect_refused(prepare_error({"model.dim=1000000000000"}),
+                 "model.dim = 1000000000000: the first and last state alone (x and v) need 32 TB");
+  expect_refused(prepare_error({"model.dim=4611686018427387904"}),
+                 "model.dim = 4611686018427387904: the first and last state alone");
+  expect_refused(prepare_error({"time.start=-1e308", "time.end=1e308"}),
+                 "time.end - time.start = inf");
+}
+
 TEST(ProblemFile, OverridesApplyBeforeValidation) {
   const ProblemSpec p =
       parse(kBase, {"model.alpha=0.25", "model.convention=caputo", "model.potential=x1^4 + x2^2",

@@ -59,6 +59,8 @@ void prepare_output_directory(const std::filesystem::path& dir);
 /// the two runs interleaving their files (issue 14: two runs into one directory left one run's
 /// trajectory beside the other's summary). Claims by the same process nest (the CLI claims the
 /// directory before the run, write_run_output() again while writing).
+/// The first claim removes the temporaries (`<file>.tmp.<pid>.<n>`, the write probe) that runs
+/// killed while writing left behind, if their process is gone; those of live processes are kept.
 class OutputLock {
  public:
   explicit OutputLock(const std::filesystem::path& dir);

@@ -29,6 +29,7 @@
 #include <memory>
 #include <string_view>
 
+#include "fracvi/core/state_archive.hpp"
 #include "fracvi/fractional/runge_kutta_cq.hpp"
 #include "fracvi/memory/history.hpp"
 
@@ -63,6 +64,10 @@ class BlockHistory {
   /// Threads for the work over degrees of freedom (0 = OpenMP's default). Only the fast history
   /// uses them (from kParallelWork multiply–adds per step); the direct one ignores it.
   virtual void set_threads(int threads) { static_cast<void>(threads); }
+  /// Saves or restores the pushed blocks and every accumulator (core/state_archive.hpp), so that a
+  /// restored history continues bit-for-bit; the weights (and the tail's fit) are rebuilt by the
+  /// constructor, and their sizes are checked against the saved ones.
+  virtual void visit_state(StateArchive& archive) = 0;
 };
 
 /// All blocks kept, exact weights W_lag … W_{lag+capacity−1}. O(k·d·s²) per sum.
@@ -84,6 +89,7 @@ class DirectBlockHistory final : public BlockHistory {
     return (weights_.data().size() + values_.size()) * sizeof(double);
   }
   [[nodiscard]] const BlockWeights& weights() const { return weights_; }
+  void visit_state(StateArchive& archive) override;
 
  private:
   RungeKuttaCq quadrature_;
@@ -122,6 +128,7 @@ class FastBlockHistory final : public BlockHistory {
            sizeof(double);
   }
   void set_threads(int threads) override;
+  void visit_state(StateArchive& archive) override;
 
   [[nodiscard]] const RkcqTail& tail() const { return *tail_; }
   /// n0, the number of exactly weighted recent lags (tail().window − lag).
