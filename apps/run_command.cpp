@@ -221,13 +221,29 @@ Command add_run_command(CLI::App& parent) {
       std::printf("  wall time         %.3f s  (set-up %.3f s, stepping %.3f s%s)\n",
                   solution.setup_seconds + solution.wall_time_seconds, solution.setup_seconds,
                   solution.wall_time_seconds, options.mirror ? " with the mirror run" : "");
-      std::printf("  output            %s/{trajectory.csv,summary.json,problem.toml%s}\n",
-                  dir.string().c_str(), !opt->no_plot && plot_note.empty() ? ",*.png" : "");
+      if (!spec.events.empty()) {
+        std::string crossings;
+        for (std::size_t i = 0; i < solution.events.size() && i < 5; ++i) {
+          char item[160];
+          std::snprintf(item, sizeof item, "%s%s at t = %.10g", crossings.empty() ? "" : ", ",
+                        solution.events.names[solution.events.event[i]].c_str(),
+                        solution.events.t[i]);
+          crossings += item;
+        }
+        if (solution.events.size() > 5) crossings += ", ...";
+        std::printf("  events            %zu crossing%s%s%s (events.csv)\n", solution.events.size(),
+                    solution.events.size() == 1 ? "" : "s", crossings.empty() ? "" : ": ",
+                    crossings.c_str());
+      }
+      std::printf("  output            %s/{trajectory.csv,%s%ssummary.json,problem.toml%s}\n",
+                  dir.string().c_str(), spec.times.empty() ? "" : "times.csv,",
+                  spec.events.empty() ? "" : "events.csv,",
+                  !opt->no_plot && plot_note.empty() ? ",*.png" : "");
       if (!plot_note.empty()) std::printf("  plots             %s\n", plot_note.c_str());
       if (resumable) {
         std::printf("  resume            fracvi run --resume %s\n", dir.string().c_str());
       }
-    } else if (!solution.ok()) {
+    } else if (!solution.ok() && solution.status != Status::kEvent) {
       report_quiet_failure("run", spec.name, solution.status, solution.message,
                            "after " + std::to_string(solution.steps_done) + " of " +
                                std::to_string(spec.steps) + " steps",
@@ -236,7 +252,9 @@ Command add_run_command(CLI::App& parent) {
     // A signal during the error estimate leaves the trajectory complete (its status says so)
     // but the command was still asked to stop.
     if (InterruptGuard::received() != 0) return kExitInterrupted;
-    return solution.ok() ? kExitSuccess : kExitNumericalFailure;
+    // A terminal event is not a failure.
+    return solution.ok() || solution.status == Status::kEvent ? kExitSuccess
+                                                              : kExitNumericalFailure;
   };
   return {app, run};
 }

@@ -386,8 +386,45 @@ class Solution:
     dissipated = _view("dissipated", "W_k (NaN with diagnostics=False)")
     balance = _view("balance", "E_k + W_k − E_0 (NaN with diagnostics=False)")
     status = _view("status", '"success", "newton-failure", "non-finite", "callback-error", '
-                   '"unstable", "inaccurate" or "interrupted" (docs/conventions.md)')
+                   '"unstable", "inaccurate", "interrupted" or "event" (a terminal event '
+                   'stopped it: not a failure) (docs/conventions.md)')
     ok = _view("ok", "status == 'success'")
+    t_eval = _view("output_t", "the requested times the run reached (t_eval / output.times), "
+                   "shape (n,)")
+    x_eval = _view("output_x", "x at t_eval from the cubic Hermite dense output of every step "
+                   "(docs/theory/dense_output.md), shape (n, d)")
+    v_eval = _view("output_v", "v at t_eval, its derivative, shape (n, d)")
+
+    @property
+    def events(self):
+        """The zero crossings of the events, in time order: a list of EventRecord(name, t,
+        direction, step, x, v)."""
+        return [EventRecord(*record) for record in self._run.events]
+
+    @property
+    def t_events(self):
+        """{event name: array of its crossing times} for the events that crossed."""
+        out = {}
+        for record in self._run.events:
+            out.setdefault(record[0], []).append(record[1])
+        return {name: np.asarray(times, dtype=float) for name, times in out.items()}
+
+    def __call__(self, t):
+        """x(t) from the stored rows by the same interpolant as t_eval (integrate(dense=True)
+        stores every step): t a number gives shape (d,), an array of times shape t.shape + (d,).
+        Grid times give the stored state exactly. ValueError outside [t[0], t[-1]] or between
+        stored rows that are not consecutive steps (output.every > 1)."""
+        return self.interpolate(t)[0]
+
+    def interpolate(self, t):
+        """(x(t), v(t)) as in solution(t)."""
+        times = np.asarray(t, dtype=float)
+        if times.ndim == 0:
+            return self._run.interpolate(float(times))
+        pairs = [self._run.interpolate(float(s)) for s in times.ravel()]
+        shape = times.shape + (self.dim,)
+        return (np.array([p[0] for p in pairs]).reshape(shape),
+                np.array([p[1] for p in pairs]).reshape(shape))
     message = _view("message", "empty on success; otherwise the step, the time and the cause")
     steps = _view("steps", "completed steps (rows 0 … steps are valid)")
     newton_iterations = _view("newton_iterations", "total over all steps")
@@ -435,9 +472,96 @@ class Solution:
                 f"mirror_error={self.mirror_error:.3g})")
 
 
-def _run_options(diagnostics, newton_absolute_tolerance, history, start):
+def _run_options(diagnostics, newton_absolute_tolerance, history, start, events=()):
     return _fracvi.RunOptions(bool(diagnostics), float(newton_absolute_tolerance), history or "",
-                              start)
+                              start, list(events))
+
+
+_EVENT_KEYS = ("name", "g", "direction", "terminal")
+
+
+def _event_direction(value, where):
+    """"both", "rising", "falling", or SciPy's 0, +1, -1."""
+    if isinstance(value, str):
+        return value  # checked by the reader (formulas) or the module (callables)
+    if isinstance(value, (int, float, np.number)) and not isinstance(value, (bool, np.bool_)):
+        return "both" if value == 0 else ("rising" if value > 0 else "falling")
+    raise TypeError(f"{where}.direction = {value!r} must be 'both', 'rising', 'falling' "
+                    f"(or 0, +1, -1)")
+
+
+def _split_events(events):
+    """The events keyword as ([[events]] tables of formulas for the problem, (name, g, direction,
+    terminal) tuples of Python callables for the run). An item is a formula string (its name is
+    the formula), a callable g(t, x, v) (name: its __name__; SciPy's attributes .direction and
+    .terminal are honoured), or a dict with the keys of [[events]] whose g is either."""
+    if events is None:
+        return [], []
+    if callable(events) or isinstance(events, (str, Mapping)):
+        events = [events]
+    formulas, callables = [], []
+    for i, item in enumerate(events):
+        where = f"events[{i}]"
+        if isinstance(item, Mapping):
+            unknown = sorted(set(item) - set(_EVENT_KEYS))
+            if unknown:
+                raise TypeError(f"{where}: unknown key {unknown[0]!r} (valid: "
+                                f"{', '.join(_EVENT_KEYS)})")
+            if "g" not in item:
+                raise TypeError(f"{where}: missing 'g' (a formula in t, x1..xd, v1..vd or a "
+                                f"callable g(t, x, v))")
+            g = item["g"]
+            entry = dict(item)
+        elif isinstance(item, str) or callable(item):
+            g, entry = item, {"g": item}
+        else:
+            raise TypeError(f"{where} = {item!r} must be a formula string, a callable g(t, x, v) "
+                            f"or a dict with the keys {', '.join(_EVENT_KEYS)}")
+        if isinstance(g, str):
+            entry.setdefault("name", g)
+            if "direction" in entry:
+                entry["direction"] = _event_direction(entry["direction"], where)
+            formulas.append(entry)
+        elif callable(g):
+            name = entry.get("name", getattr(g, "__name__", f"event{i}"))
+            direction = _event_direction(entry.get("direction", getattr(g, "direction", "both")),
+                                         where)
+            terminal = entry.get("terminal", getattr(g, "terminal", False))
+            if not isinstance(terminal, (bool, np.bool_)):
+                raise TypeError(f"{where}.terminal = {terminal!r} must be True or False")
+            callables.append((str(name), g, direction, bool(terminal)))
+        else:
+            raise TypeError(f"{where}.g = {g!r} must be a formula string or a callable "
+                            f"g(t, x, v)")
+    return formulas, callables
+
+
+def _with_output(problem, fields, t_eval, formulas, dense, function):
+    """t_eval (output.times) and the formula events applied to the problem; dense checked."""
+    if t_eval is not None:
+        if fields.get("times") is not None:
+            raise TypeError(f"{function}() got t_eval and times: they are the same (give one)")
+        times = np.asarray(t_eval, dtype=float)
+        if times.ndim != 1:
+            raise ValueError(f"t_eval must be a 1-D sequence of times, got shape {times.shape}")
+        fields = dict(fields, times=times.tolist())
+    if formulas:
+        document = problem.to_dict()
+        document["events"] = list(document.get("events", [])) + formulas
+        problem = Problem.from_dict(document, source=problem.source)
+    if dense:
+        every = fields.get("every", problem.every)
+        if every != 1:
+            raise ValueError(f"dense=True needs every step stored (output.every = 1): sol(t) "
+                             f"interpolates between consecutive steps; output.every = {every!r} "
+                             f"(t_eval= gives exact-order values at chosen times with any every)")
+    return problem, fields
+
+
+EventRecord = namedtuple("EventRecord", "name t direction step x v")
+EventRecord.__doc__ = """A zero crossing of an event function: its name, the time t (the root of
+g on the dense interpolant), direction (+1 rising, -1 falling), the step k + 1 whose interval
+(t_k, t_(k+1)] holds it, and the interpolated state x, v there."""
 
 
 def _with_mirror(fields, mirror):
@@ -455,7 +579,8 @@ def _unpickle_solution(problem, summary, *arrays):
 
 
 def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=None, diagnostics=True,
-              history=None, start="legendre", raise_on_failure=False, **fields):
+              history=None, start="legendre", raise_on_failure=False, t_eval=None,
+              events=None, dense=False, **fields):
     """Integrates `problem` (a Problem, a dict, or a TOML path/text) to its final time.
 
     Every key of the problem's [method] and [output] sections (problem_schema(): scheme,
@@ -484,11 +609,27 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=None, diagnostic
     Ctrl-C (SIGINT) stops the run within about 0.1 s: the KeyboardInterrupt (or whatever the
     signal handler raised) propagates with the partial solution as its attribute .solution
     (status "interrupted", the trajectory up to the last completed step).
+
+    Output where you want it (docs/theory/dense_output.md): t_eval (= output.times; ascending,
+    within [start, end]) gives solution.t_eval, x_eval, v_eval from the cubic Hermite interpolant
+    of every step's (x, v), evaluated during the run whatever `every`; dense=True keeps every step
+    (needs every = 1) so that solution(t) interpolates anywhere afterwards. events: zero
+    crossings of g(t, x, v), each a formula string in t, x1..xd, v1..vd (fast: the [[events]] of
+    problem files), a callable g(t, x, v) -> float (slower: Python at every step), or a dict with
+    name, g, direction ("both", "rising", "falling" or SciPy's 0, +1, -1) and terminal; located
+    on the interpolant, listed in solution.events and t_events; a terminal one ends the run with
+    status "event" (not a failure: raise_on_failure does not raise). A callable that raises, or
+    returns anything but one real number, ends the run ("callback-error"; a NaN: "non-finite")
+    with the exception and its traceback in the message, the steps so far kept.
     """
-    problem = _with_fields(_as_problem(problem), _with_mirror(fields, mirror), "integrate",
+    formulas, callables = _split_events(events)
+    problem, fields = _with_output(_as_problem(problem), fields, t_eval, formulas, dense,
+                                   "integrate")
+    problem = _with_fields(problem, _with_mirror(fields, mirror), "integrate",
                            _FIELD_SECTIONS, _RUN_OPTIONS)
     run = _fracvi.integrate(problem._spec,
-                            _run_options(diagnostics, newton_absolute_tolerance, history, start))
+                            _run_options(diagnostics, newton_absolute_tolerance, history, start,
+                                         callables))
     solution = Solution(run, problem)
     if run.interrupt is not None:
         # Ctrl-C (or another signal whose handler raised) during the run: the run stopped at the
@@ -497,7 +638,7 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=None, diagnostic
         interrupt = run.interrupt
         interrupt.solution = solution
         raise interrupt
-    if raise_on_failure and not solution.ok:
+    if raise_on_failure and not solution.ok and solution.status != "event":
         raise IntegrationError(solution)
     return solution
 
@@ -544,11 +685,15 @@ class Integrator:
     __slots__ = ("_native", "problem", "_raise_on_failure")
 
     def __init__(self, problem, *, newton_absolute_tolerance=0.0, mirror=None, diagnostics=True,
-                 history=None, start="legendre", raise_on_failure=False, **fields):
-        self.problem = _with_fields(_as_problem(problem), _with_mirror(fields, mirror),
+                 history=None, start="legendre", raise_on_failure=False, t_eval=None,
+                 events=None, dense=False, **fields):
+        formulas, callables = _split_events(events)
+        problem, fields = _with_output(_as_problem(problem), fields, t_eval, formulas, dense,
+                                       "Integrator")
+        self.problem = _with_fields(problem, _with_mirror(fields, mirror),
                                     "Integrator", _FIELD_SECTIONS, _RUN_OPTIONS)
         self._native = _fracvi.Stepping(self.problem._spec, _run_options(
-            diagnostics, newton_absolute_tolerance, history, start))
+            diagnostics, newton_absolute_tolerance, history, start, callables))
         self._raise_on_failure = bool(raise_on_failure)
 
     status = property(lambda self: self._native.status,
@@ -604,7 +749,7 @@ class Integrator:
         return self.solution()
 
     def _checked(self, status):
-        if self._raise_on_failure and status not in ("running", "success"):
+        if self._raise_on_failure and status not in ("running", "success", "event"):
             raise IntegrationError(self.solution())
         return status
 
@@ -1051,7 +1196,7 @@ _NOT_KEYWORDS = ("history", "checkpoint_every")
 _FIELD_SECTIONS = {row["key"]: row["section"] for row in _fracvi.problem_schema()
                    if row["section"] in ("method", "output") and row["key"] not in _NOT_KEYWORDS}
 _RUN_OPTIONS = ("newton_absolute_tolerance", "diagnostics", "history", "start",
-                "raise_on_failure")
+                "raise_on_failure", "t_eval", "events", "dense")
 # solve_bvp()'s keywords: every key of [method] and [output] but those of the initial value
 # drivers (the error estimate and its tolerance; solve_bvp's own `tolerance` is its residual's).
 _IVP_ONLY = ("error_estimate", "tolerance", "max_steps", "checkpoint_every", "mirror")

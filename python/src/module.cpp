@@ -42,6 +42,7 @@
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/fractional/riemann_liouville.hpp"
 #include "fracvi/fractional/weights.hpp"
+#include "fracvi/integrate/dense_output.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/io/lagrangian_problem.hpp"
 #include "fracvi/io/output.hpp"
@@ -284,7 +285,72 @@ struct RunOptions {
   double absolute_tolerance = 0.0;
   std::string history;  // "" keeps the problem's
   std::string start = "legendre";
+  /// Events given as Python callables: (name, g, direction, terminal) tuples, after the
+  /// problem's formula events.
+  std::vector<py::tuple> events;
 };
+
+/// "TypeError: message" and the traceback (most recent call last) of a Python exception, for the
+/// run's message: the exception first (the message is cut at its end when long).
+std::string exception_text(py::error_already_set& e) {
+  std::string text = py::str(e.type().attr("__name__")).cast<std::string>() + ": " +
+                     py::str(e.value()).cast<std::string>();
+  if (e.trace()) {
+    text += " (traceback, most recent call last:";
+    const py::list frames = py::module_::import("traceback").attr("extract_tb")(e.trace());
+    for (const auto& frame : frames) {
+      text += " " + py::str(frame.attr("filename")).cast<std::string>() + ":" +
+              py::str(frame.attr("lineno")).cast<std::string>() + " in " +
+              py::str(frame.attr("name")).cast<std::string>() + ";";
+    }
+    text.back() = ')';
+  }
+  return text;
+}
+
+/// A Python callable g(t, x, v) as an Event: called with the GIL taken (the runs release it),
+/// with x and v as new read-only NumPy arrays. It must return one real number: a Python
+/// exception, or a result that is not one number (an array of another size, a string, None),
+/// becomes an exception whose what() the Integrator puts in the run's message
+/// (Status::kCallbackError); a NaN is Status::kNonFinite. Each call allocates (Python objects):
+/// the step loop's no-allocation rule holds for the formula events only.
+Event python_event(const py::tuple& item, std::size_t index) {
+  const std::string name = item[0].cast<std::string>();
+  const auto direction = parse_event_direction(item[2].cast<std::string>());
+  if (!direction) {
+    throw py::value_error("events[" + std::to_string(index) + "] (\"" + name +
+                          "\"): direction = '" + item[2].cast<std::string>() +
+                          "' must be 'both', 'rising' or 'falling' (or 0, +1, -1)");
+  }
+  auto function = std::make_shared<py::object>(item[1]);
+  Event event;
+  event.name = name;
+  event.direction = *direction;
+  event.terminal = item[3].cast<bool>();
+  event.function = [function](double t, const Eigen::Ref<const Eigen::VectorXd>& x,
+                              const Eigen::Ref<const Eigen::VectorXd>& v) -> double {
+    const py::gil_scoped_acquire gil;
+    std::string problem;
+    try {
+      const py::object result = (*function)(t, vector_copy(x), vector_copy(v));
+      const py::array values = py::array::ensure(result);
+      const char kind = values ? values.dtype().kind() : 'O';
+      const bool real = kind == 'f' || kind == 'i' || kind == 'u' || kind == 'b';
+      if (values && values.size() == 1 && real) {
+        return py::float_(values.attr("item")()).cast<double>();
+      }
+      const std::string shape =
+          values ? py::str(values.attr("shape")).cast<std::string>() : std::string("?");
+      problem = "g returned " + py::repr(result).cast<std::string>().substr(0, 60) + " (type " +
+                py::str(py::type::of(result).attr("__name__")).cast<std::string>() + ", shape " +
+                shape + "): it must return one real number";
+    } catch (py::error_already_set& e) {
+      problem = exception_text(e);
+    }
+    throw std::runtime_error(problem);
+  };
+  return event;
+}
 
 /// prepare_run (the CLI's checks and messages) with the run options applied and validated.
 /// `caller` names the Python function in messages.
@@ -301,6 +367,9 @@ PreparedRun prepare_python_run(const ProblemSpec& spec, const RunOptions& run,
   options.newton.absolute_tolerance = run.absolute_tolerance;
   if (const auto kind = parse_history(run.history)) options.history = *kind;
   options.start = parse_start(run.start);
+  for (std::size_t i = 0; i < run.events.size(); ++i) {
+    options.events.push_back(python_event(run.events[i], options.events.size()));
+  }
   try {
     validate(options);
   } catch (const ValidationError& e) {
@@ -996,6 +1065,52 @@ void bind(py::module_& m) {
       .def_property_readonly("declared_order",
                              [](const Run& r) { return r.solution.declared_order; })
       .def_property_readonly("spec", [](const Run& r) { return r.spec; })
+      .def_property_readonly("output_t",
+                             [](py::object self) {
+                               const auto& s = self.cast<const Run&>().solution;
+                               return view(self, s.output_t.data(), s.output_t.size(), 0);
+                             })
+      .def_property_readonly("output_x",
+                             [](py::object self) {
+                               const auto& s = self.cast<const Run&>().solution;
+                               return view(self, s.output_x.data(), s.output_x.rows(),
+                                           s.output_x.cols());
+                             })
+      .def_property_readonly("output_v",
+                             [](py::object self) {
+                               const auto& s = self.cast<const Run&>().solution;
+                               return view(self, s.output_v.data(), s.output_v.rows(),
+                                           s.output_v.cols());
+                             })
+      .def_property_readonly(
+          "events",
+          [](const Run& r) {
+            // (name, t, direction (+1/-1), step, x, v) per crossing, in time order; copies.
+            const EventLog& log = r.solution.events;
+            const Eigen::Index d = r.solution.x.cols();
+            py::list out;
+            for (std::size_t i = 0; i < log.size(); ++i) {
+              const auto at = static_cast<Eigen::Index>(i) * d;
+              out.append(py::make_tuple(
+                  log.names[log.event[i]], log.t[i], log.direction[i], log.step[i],
+                  vector_copy(Eigen::Map<const Eigen::VectorXd>(log.x.data() + at, d)),
+                  vector_copy(Eigen::Map<const Eigen::VectorXd>(log.v.data() + at, d))));
+            }
+            return out;
+          })
+      .def(
+          "interpolate",
+          [](const Run& r, double t) {
+            const Eigen::Index d = r.solution.x.cols();
+            Eigen::VectorXd x(d), v(d);
+            try {
+              interpolate(r.solution, t, x, v);
+            } catch (const ValidationError& e) {
+              throw py::value_error(e.what());
+            }
+            return py::make_tuple(vector_copy(x), vector_copy(v));
+          },
+          py::arg("t"))
       .def(
           "summary",
           [](const Run& r, const ProblemSpec* spec) {
@@ -1088,11 +1203,11 @@ void bind(py::module_& m) {
 
   py::class_<RunOptions>(m, "RunOptions", "The run options of integrate() and Integrator.")
       .def(py::init([](bool diagnostics, double absolute_tolerance, const std::string& history,
-                       const std::string& start) {
-             return RunOptions{diagnostics, absolute_tolerance, history, start};
+                       const std::string& start, const std::vector<py::tuple>& events) {
+             return RunOptions{diagnostics, absolute_tolerance, history, start, events};
            }),
            py::arg("diagnostics"), py::arg("absolute_tolerance"), py::arg("history"),
-           py::arg("start"));
+           py::arg("start"), py::arg("events") = std::vector<py::tuple>{});
 
   m.def("integrate", &run_problem, py::arg("spec"), py::arg("options"));
   m.def("restore_run", &restore_run, py::arg("spec"), py::arg("summary"), py::arg("t"),

@@ -29,7 +29,9 @@ std::optional<RowMatrixXd> companion(const InitialValueProblem& problem, const M
   IntegratorOptions o = options;
   o.mirror = false;
   o.diagnostics = false;
-  o.save_every = steps;  // the rows are taken by the observer below, not stored
+  o.save_every = steps;    // the rows are taken by the observer below, not stored
+  o.output_times.clear();  // the grid rows are compared; no stop at a terminal event
+  o.events.clear();
   const std::size_t n = problem.steps;
   // Companion step j ↔ main step j · n / steps; main step k ↔ stored row (k / save_every, or
   // the last row for k = n).
@@ -79,6 +81,10 @@ void estimate_error(const InitialValueProblem& problem, const Method& method,
   e = ErrorEstimate{};
   if (options.error_estimate == ErrorEstimateKind::kNone) {
     e.note = "not requested (method.error_estimate = \"none\")";
+    return;
+  }
+  if (solution.status == Status::kEvent) {
+    e.note = "the run stopped at a terminal event (the companion runs compare whole runs)";
     return;
   }
   if (!solution.ok()) {

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include "fracvi/core/error.hpp"
+#include "fracvi/core/event.hpp"
 #include "fracvi/core/memory.hpp"
 #include "fracvi/core/newton_options.hpp"
 #include "fracvi/core/status.hpp"
@@ -36,17 +37,35 @@ std::string_view to_string(Status status) {
     case Status::kUnstable: return "unstable";
     case Status::kInaccurate: return "inaccurate";
     case Status::kInterrupted: return "interrupted";
+    case Status::kEvent: return "event";
   }
   return "unknown";
 }
 
 std::optional<Status> parse_status(std::string_view name) {
-  for (const Status s :
-       {Status::kRunning, Status::kSuccess, Status::kNewtonFailure, Status::kNonFinite,
-        Status::kCallbackError, Status::kUnstable, Status::kInaccurate, Status::kInterrupted}) {
+  for (const Status s : {Status::kRunning, Status::kSuccess, Status::kNewtonFailure,
+                         Status::kNonFinite, Status::kCallbackError, Status::kUnstable,
+                         Status::kInaccurate, Status::kInterrupted, Status::kEvent}) {
     if (to_string(s) == name) return s;
   }
   return std::nullopt;
+}
+
+std::optional<EventDirection> parse_event_direction(std::string_view name) {
+  for (const EventDirection d :
+       {EventDirection::kBoth, EventDirection::kRising, EventDirection::kFalling}) {
+    if (to_string(d) == name) return d;
+  }
+  return std::nullopt;
+}
+
+std::string_view to_string(EventDirection direction) {
+  switch (direction) {
+    case EventDirection::kBoth: return "both";
+    case EventDirection::kRising: return "rising";
+    case EventDirection::kFalling: return "falling";
+  }
+  return "unknown";
 }
 
 std::size_t physical_memory_bytes() {

@@ -9,8 +9,11 @@
 #include <string>
 #include <utility>
 
+#include <boost/math/tools/toms748_solve.hpp>
+
 #include "fracvi/core/error.hpp"
 #include "fracvi/core/memory.hpp"
+#include "fracvi/integrate/dense_output.hpp"
 
 namespace fracvi {
 
@@ -67,6 +70,7 @@ InitialValueProblem validated(InitialValueProblem problem, const Method& method,
                               const IntegratorOptions& options) {
   validate(problem);
   validate(options);
+  validate_output(options.output_times, options.events, problem.t0, problem.t_end);
   check_storage(problem, options);
   check_applicable(problem, method, options);
   return problem;
@@ -142,7 +146,16 @@ struct Integrator::Impl {
   double max_abs_balance = 0.0;     // max_j |E_j + W_j − E_0| and its step (rule 3)
   std::size_t max_balance_step = 0;
 
-  std::array<char, 480> message{};
+  // Dense output and events (dense_output.hpp): the state before the step, the interpolant's
+  // workspace, the next output time, g of every event at the step's start, and the crossings of
+  // one step (event, s), sorted by s. All sized in the constructor.
+  bool dense = false;
+  Eigen::VectorXd x_before, v_before, x_dense, v_dense;
+  std::size_t next_output = 0;
+  std::vector<double> g_before, g_after;
+  std::vector<std::pair<double, std::size_t>> crossings;
+
+  std::array<char, 1024> message{};
   std::chrono::steady_clock::time_point clock_start;
   bool clock_running = false;
   double run_seconds = 0.0;
@@ -169,6 +182,7 @@ struct Integrator::Impl {
     sol.method = std::string(method.name());
     sol.declared_order = method.declared_order(problem.model);
     sol.save_every = options.save_every;
+    sol.step_size = h;
     sol.linear_solver = std::string(to_string(stepper->linear_solver()));
     sol.history_bytes = stepper->history_bytes();
     sol.history = std::string(stepper->history_kind());
@@ -183,6 +197,191 @@ struct Integrator::Impl {
     }
     init_health();
     store();
+    init_dense();
+  }
+
+  // Sizes the dense output's storage, evaluates every event at (t_0, x_0, v_0) and outputs the
+  // requested times equal to t_0. A g that throws or is not finite there is bad input.
+  void init_dense() {
+    const auto outputs = static_cast<Eigen::Index>(options.output_times.size());
+    sol.output_t = Eigen::VectorXd::Constant(outputs, kNaN);
+    sol.output_x = RowMatrixXd::Constant(outputs, d, kNaN);
+    sol.output_v = RowMatrixXd::Constant(outputs, d, kNaN);
+    const std::size_t n_events = options.events.size();
+    dense = outputs > 0 || n_events > 0;
+    if (!dense) return;
+    x_before.resize(d);
+    v_before.resize(d);
+    x_dense.resize(d);
+    v_dense.resize(d);
+    g_before.resize(n_events);
+    g_after.resize(n_events);
+    crossings.reserve(n_events);
+    // Recording crossings appends to these; 64 crossings fit before the first reallocation.
+    constexpr std::size_t kReservedCrossings = 64;
+    EventLog& log = sol.events;
+    for (const Event& e : options.events) log.names.push_back(e.name);
+    log.event.reserve(kReservedCrossings);
+    log.t.reserve(kReservedCrossings);
+    log.step.reserve(kReservedCrossings);
+    log.direction.reserve(kReservedCrossings);
+    log.x.reserve(kReservedCrossings * static_cast<std::size_t>(d));
+    log.v.reserve(kReservedCrossings * static_cast<std::size_t>(d));
+    for (std::size_t i = 0; i < n_events; ++i) {
+      double g = kNaN;
+      try {
+        g = options.events[i].function(problem.t0, stepper->position(), stepper->velocity());
+      } catch (const std::exception& e) {
+        throw ValidationError(event_field(i) + ": g(t_0, x_0, v_0) threw: " + e.what());
+      }
+      if (!std::isfinite(g)) {
+        throw ValidationError(event_field(i) + ": g(t_0, x_0, v_0) = " + format_number(g) +
+                              " at t_0 = " + format_number(problem.t0) +
+                              ": must be a finite number");
+      }
+      g_before[i] = g;
+    }
+    output_until(0.0, false);
+  }
+
+  [[nodiscard]] std::string event_field(std::size_t i) const {
+    return "events[" + std::to_string(i) + "] (\"" + options.events[i].name + "\")";
+  }
+
+  // Fills the requested output times t ≤ t_k + s_end h of the step [t_k, t_{k+1}] (k = this->k
+  // − 1 after a step; at k = 0 before any, with s_end = 0: the times equal to t_0).
+  void output_until(double s_end, bool stepped) noexcept {
+    const std::size_t k0 = stepped ? k - 1 : k;
+    const double ta = time(k0);
+    // Up to t_{k+1} itself (the last time may be t_end, a rounding away from t_N), or to the
+    // terminal crossing.
+    const bool last = stepped && k == n_steps;
+    const double t_step_end = last ? std::max(problem.t_end, time(k)) : time(k);
+    const double t_limit = s_end == 1.0 && stepped ? t_step_end : ta + s_end * h;
+    while (next_output < options.output_times.size()) {
+      const double t = options.output_times[next_output];
+      if (t > t_limit) break;
+      const auto r = static_cast<Eigen::Index>(next_output);
+      Eigen::Map<Eigen::VectorXd> x(sol.output_x.row(r).data(), d),
+          v(sol.output_v.row(r).data(), d);
+      if (!stepped) {
+        x = stepper->position();
+        v = stepper->velocity();
+      } else {
+        // At or past the step's end (the last time may be t_end, a rounding away from t_N): the
+        // grid state itself.
+        const double s = t >= time(k) ? 1.0 : std::clamp((t - ta) / h, 0.0, 1.0);
+        hermite_interpolate(s, h, x_before, v_before, stepper->position(), stepper->velocity(), x,
+                            v);
+      }
+      sol.output_t[r] = t;
+      ++next_output;
+    }
+  }
+
+  // g of event i on the interpolant of the step just taken at s ∈ [0, 1].
+  double g_dense(std::size_t i, double s) {
+    hermite_interpolate(s, h, x_before, v_before, stepper->position(), stepper->velocity(), x_dense,
+                        v_dense);
+    return options.events[i].function(time_in_step(s), x_dense, v_dense);
+  }
+  // t_{k−1} + s h in the step just taken, t_k itself at s = 1.
+  [[nodiscard]] double time_in_step(double s) const {
+    return s == 1.0 ? time(k) : time(k - 1) + s * h;
+  }
+
+  // After step k: evaluates the events at t_k, locates the crossings in [t_{k−1}, t_k] on the
+  // interpolant (TOMS 748 to full precision in s), records them in time order up to the first
+  // terminal one, and outputs the requested times up to there. Returns kEvent (message written)
+  // for a terminal crossing, kCallbackError / kNonFinite (message written) when a g throws or is
+  // not finite, kSuccess otherwise.
+  Status dense_step() noexcept {
+    double s_end = 1.0;
+    std::size_t terminal = options.events.size();
+    std::size_t i = 0;
+    double s_bad = 1.0;
+    try {
+      crossings.clear();
+      for (i = 0; i < options.events.size(); ++i) {
+        s_bad = 1.0;
+        const double g =
+            options.events[i].function(time(k), stepper->position(), stepper->velocity());
+        if (!std::isfinite(g)) return bad_event(i, g, 1.0);
+        g_after[i] = g;
+        const double ga = g_before[i];
+        const bool rising = ga < 0.0 && g >= 0.0, falling = ga > 0.0 && g <= 0.0;
+        const EventDirection dir = options.events[i].direction;
+        if (!((rising && dir != EventDirection::kFalling) ||
+              (falling && dir != EventDirection::kRising))) {
+          continue;
+        }
+        double s = 1.0;
+        if (g != 0.0) {
+          // Bracketed by construction (ga and g of opposite signs); the root of the interpolant
+          // to a few ulps of s: its error is then the interpolant's (dense_output.md).
+          auto f = [&](double sigma) {
+            s_bad = sigma;
+            const double value = g_dense(i, sigma);
+            if (!std::isfinite(value)) throw NonFiniteEvent{value};
+            return value;
+          };
+          boost::uintmax_t iterations = 100;
+          const auto bracket = boost::math::tools::toms748_solve(
+              f, 0.0, 1.0, ga, g, boost::math::tools::eps_tolerance<double>(), iterations);
+          s = 0.5 * (bracket.first + bracket.second);
+        }
+        crossings.emplace_back(s, i);
+      }
+    } catch (const NonFiniteEvent& e) {
+      return bad_event(i, e.value, s_bad);
+    } catch (const std::exception& e) {
+      return event_threw(i, e.what(), s_bad);
+    } catch (...) {
+      return event_threw(i, "an exception that is not a std::exception", s_bad);
+    }
+    std::sort(crossings.begin(), crossings.end());
+    EventLog& log = sol.events;
+    for (const auto& [s, e] : crossings) {
+      if (terminal < options.events.size()) break;  // after the terminal crossing
+      hermite_interpolate(s, h, x_before, v_before, stepper->position(), stepper->velocity(),
+                          x_dense, v_dense);
+      log.event.push_back(e);
+      log.t.push_back(time_in_step(s));
+      log.step.push_back(k);
+      log.direction.push_back(g_after[e] > g_before[e] ? 1 : -1);
+      log.x.insert(log.x.end(), x_dense.data(), x_dense.data() + d);
+      log.v.insert(log.v.end(), v_dense.data(), v_dense.data() + d);
+      if (options.events[e].terminal) {
+        terminal = e;
+        s_end = s;
+      }
+    }
+    std::swap(g_before, g_after);
+    output_until(s_end, true);
+    if (terminal == options.events.size()) return Status::kSuccess;
+    std::snprintf(message.data(), message.size(),
+                  "stopped by the terminal event \"%s\" at t = %.17g (in step %zu); the steps up "
+                  "to there are kept",
+                  options.events[terminal].name.c_str(), sol.events.t.back(), k);
+    return Status::kEvent;
+  }
+
+  struct NonFiniteEvent {
+    double value;
+  };
+
+  Status bad_event(std::size_t i, double g, double s) noexcept {
+    std::snprintf(message.data(), message.size(),
+                  "events[%zu] (\"%s\"): g = %.6g at t = %.17g (step %zu): an event function must "
+                  "return a finite number",
+                  i, options.events[i].name.c_str(), g, time_in_step(s), k);
+    return Status::kNonFinite;
+  }
+  Status event_threw(std::size_t i, const char* what, double s) noexcept {
+    std::snprintf(message.data(), message.size(),
+                  "events[%zu] (\"%s\") threw in step %zu (t = %.17g): %s", i,
+                  options.events[i].name.c_str(), k, time_in_step(s), what);
+    return Status::kCallbackError;
   }
 
   // E_k = ½ v_kᵀ p_k + U(x_k, t_k) from the stepper's state; sets kinetic_k and potential_k.
@@ -300,7 +499,7 @@ struct Integrator::Impl {
   [[nodiscard]] bool balance_rule_tripped() const {
     return options.diagnostics && max_abs_balance > kInaccurateBalanceFraction * tolerance_scale;
   }
-  void write_inaccurate_message(std::array<char, 480>& out) const noexcept {
+  void write_inaccurate_message(std::array<char, 1024>& out) const noexcept {
     std::snprintf(out.data(), out.size(),
                   "inaccurate: the energy balance error |E_k + W_k - E_0| reached %.6g at step %zu "
                   "(t = %.17g), more than %g x the energy scale %.6g of the run (the steps do not "
@@ -385,6 +584,11 @@ struct Integrator::Impl {
       throw CheckpointError(std::string("a checkpoint needs a running integration; this one is ") +
                             std::string(to_string(status)));
     }
+    if (dense) {
+      throw CheckpointError(
+          "a run with output times or events cannot save its state (their "
+          "progress is not part of a checkpoint)");
+    }
     if (!method.info().checkpoints) {
       throw CheckpointError("method.scheme = \"" + std::string(method.name()) +
                             "\" cannot save its state (no checkpoints)");
@@ -451,6 +655,10 @@ struct Integrator::Impl {
       clock_start = std::chrono::steady_clock::now();
       clock_running = true;
     }
+    if (dense) {
+      x_before = stepper->position();
+      v_before = stepper->velocity();
+    }
     const Status s = stepper->step();
     const auto iterations = static_cast<std::size_t>(stepper->last_iterations());
     sol.newton_iterations += iterations;
@@ -494,6 +702,14 @@ struct Integrator::Impl {
       stop_clock();
       store();  // the step that tripped the rule is the last row
       return status;
+    }
+    if (dense) {
+      if (const Status e = dense_step(); e != Status::kSuccess) {
+        status = e;
+        stop_clock();
+        store();  // the step in which the event was found (or g failed) is the last row
+        return status;
+      }
     }
     if (k % options.save_every == 0 || k == n_steps) store();
     if (k == n_steps) {
@@ -589,7 +805,7 @@ Solution Integrator::Impl::result(Solution s, std::size_t rows) const {
                  " x the energy scale " + format_number(tolerance_scale) + ")";
   }
   if (status == Status::kRunning && unresolved) {
-    std::array<char, 480> inaccurate{};
+    std::array<char, 1024> inaccurate{};
     write_inaccurate_message(inaccurate);
     s.message = std::string(inaccurate.data()) + "; ";
   }
@@ -605,6 +821,10 @@ Solution Integrator::Impl::result(Solution s, std::size_t rows) const {
   s.energy.conservativeResize(n);
   s.dissipated.conservativeResize(n);
   s.balance.conservativeResize(n);
+  const auto outputs = static_cast<Eigen::Index>(next_output);
+  s.output_t.conservativeResize(outputs);
+  s.output_x.conservativeResize(outputs, Eigen::NoChange);
+  s.output_v.conservativeResize(outputs, Eigen::NoChange);
   return s;
 }
 

@@ -21,6 +21,7 @@
 #include <unistd.h>
 
 #include "fracvi/analysis/convergence.hpp"
+#include "fracvi/integrate/dense_output.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/chain_potential.hpp"
 #include "fracvi/model/expression_potential.hpp"
@@ -69,6 +70,12 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   o.threads = spec.threads;
   o.save_every = static_cast<std::size_t>(spec.every);
   o.mirror = mirror_check_runs(spec);
+  o.output_times = spec.times;
+  for (std::size_t i = 0; i < spec.events.size(); ++i) {
+    const ProblemSpec::EventSpec& e = spec.events[i];
+    o.events.push_back(formula_event(e.name, e.g, spec.dim, *parse_event_direction(e.direction),
+                                     e.terminal, "events[" + std::to_string(i + 1) + "].g"));
+  }
   return o;
 }
 
@@ -254,6 +261,27 @@ nlohmann::json tolerance_runs_json(const Solution& s) {
   return runs;
 }
 
+// The crossings of the run's events (Solution::events) for summary.json.
+nlohmann::json events_json(const Solution& s) {
+  nlohmann::json a = nlohmann::json::array();
+  const EventLog& log = s.events;
+  const auto d = static_cast<std::size_t>(s.x.cols());
+  for (std::size_t i = 0; i < log.size(); ++i) {
+    nlohmann::json x = nlohmann::json::array(), v = nlohmann::json::array();
+    for (std::size_t j = 0; j < d; ++j) {
+      x.push_back(json_number(log.x[i * d + j]));
+      v.push_back(json_number(log.v[i * d + j]));
+    }
+    a.push_back({{"name", log.names[log.event[i]]},
+                 {"t", json_number(log.t[i])},
+                 {"direction", log.direction[i] > 0 ? "rising" : "falling"},
+                 {"step", log.step[i]},
+                 {"position", x},
+                 {"velocity", v}});
+  }
+  return a;
+}
+
 nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
   const Eigen::Index last = s.t.size() - 1;  // the last stored row: step s.steps_done
   nlohmann::json reference_error;            // null without a [reference]
@@ -286,6 +314,8 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
       {"linear_solver", s.linear_solver},
       {"history", s.history},
       {"save_every", s.save_every},
+      {"output_times", s.output_t.size()},
+      {"events", events_json(s)},
       {"wall_seconds", s.setup_seconds + s.wall_time_seconds},
       {"setup_wall_seconds", s.setup_seconds},
       {"stepping_wall_seconds", s.wall_time_seconds},
@@ -402,9 +432,58 @@ void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
   } else {
     write_trajectory_csv(dir / "trajectory.csv", s);
   }
+  std::filesystem::remove(dir / "times.csv", ec);
+  std::filesystem::remove(dir / "events.csv", ec);
+  if (!spec.times.empty()) write_times_csv(dir / "times.csv", s);
+  if (!spec.events.empty()) write_events_csv(dir / "events.csv", s);
   write_file_atomically(dir / "problem.toml",
                         "# written by " + version_string() + "\n" + to_toml(spec));
   write_file_atomically(dir / "summary.json", make_summary(spec, s).dump(2) + "\n");
+}
+
+namespace {
+
+// "t,x1,…,xd,v1,…,vd\n" after `first` (a comma-terminated prefix of columns, or "").
+std::string state_header(const std::string& first, Eigen::Index d) {
+  std::string line = first + "t";
+  for (Eigen::Index i = 1; i <= d; ++i) line += ",x" + std::to_string(i);
+  for (Eigen::Index i = 1; i <= d; ++i) line += ",v" + std::to_string(i);
+  return line + "\n";
+}
+
+void append_state(std::string& line, double t, const double* x, const double* v, Eigen::Index d) {
+  append_csv_number(line, t);
+  for (Eigen::Index i = 0; i < d; ++i) line += ',', append_csv_number(line, x[i]);
+  for (Eigen::Index i = 0; i < d; ++i) line += ',', append_csv_number(line, v[i]);
+  line += '\n';
+}
+
+}  // namespace
+
+void write_times_csv(const std::filesystem::path& file, const Solution& s) {
+  const Eigen::Index d = s.x.cols();
+  write_file_atomically(file, [&s, d](std::ostream& out) {
+    std::string line = state_header("", d);
+    for (Eigen::Index r = 0; r < s.output_t.size(); ++r) {
+      append_state(line, s.output_t[r], s.output_x.row(r).data(), s.output_v.row(r).data(), d);
+    }
+    out << line;
+  });
+}
+
+void write_events_csv(const std::filesystem::path& file, const Solution& s) {
+  const Eigen::Index d = s.x.cols();
+  write_file_atomically(file, [&s, d](std::ostream& out) {
+    std::string line = state_header("event,direction,step,", d);
+    const EventLog& log = s.events;
+    const auto stride = static_cast<std::size_t>(d);
+    for (std::size_t i = 0; i < log.size(); ++i) {
+      line += log.names[log.event[i]] + (log.direction[i] > 0 ? ",rising," : ",falling,") +
+              std::to_string(log.step[i]) + ",";
+      append_state(line, log.t[i], log.x.data() + i * stride, log.v.data() + i * stride, d);
+    }
+    out << line;
+  });
 }
 
 void write_trajectory_csv(const std::filesystem::path& file, const Solution& s) {

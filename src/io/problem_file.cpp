@@ -83,20 +83,35 @@ class Reader {
         fail(key, "unknown key or section" + did_you_mean(key, top) + "; valid: " + joined(valid));
       }
       if (key == "name") continue;
+      if (key == "events") {
+        if (!v.is_array() || !(v.as_array()->empty() || v.is_array_of_tables())) {
+          fail(key,
+               "must be an array of tables [[events]] (name, g, direction, terminal), not a "
+               "single value or table");
+        }
+        const auto& a = *v.as_array();
+        for (std::size_t i = 0; i < a.size(); ++i) {
+          check_table_keys(*a[i].as_table(), "events", "events[" + std::to_string(i + 1) + "]");
+        }
+        continue;
+      }
       if (!v.is_table()) fail(key, "must be a section [" + key + "], not a value");
       check_table_keys(*v.as_table(), key);
     }
   }
 
   // The keys of section `path` (and of its sub-tables that have a schema, e.g. [model.chain]).
-  void check_table_keys(const toml::table& table, const std::string& path) const {
+  // `shown` names the table in messages (events[2] for the second [[events]]).
+  void check_table_keys(const toml::table& table, const std::string& path,
+                        const std::string& shown = "") const {
     const auto& s = schema();
     const auto& allowed = s.at(path);
     for (auto&& [k, v] : table) {
       const std::string sub(k.str());
       if (std::find(allowed.begin(), allowed.end(), sub) == allowed.end()) {
-        fail(path + "." + sub, "unknown key" + did_you_mean(sub, allowed) + "; valid in [" + path +
-                                   "]: " + joined(allowed));
+        fail((shown.empty() ? path : shown) + "." + sub,
+             "unknown key" + did_you_mean(sub, allowed) + "; valid in [" + path +
+                 "]: " + joined(allowed));
       }
       if (v.is_table() && s.count(path + "." + sub) != 0) {
         check_table_keys(*v.as_table(), path + "." + sub);
@@ -157,6 +172,10 @@ class Reader {
   long long integer(const toml::node& n, const std::string& key) const {
     if (!n.is_integer()) fail(key, value_text(n) + "must be an integer, got " + type_name(n));
     return *n.value<long long>();
+  }
+  bool boolean(const toml::node& n, const std::string& key) const {
+    if (!n.is_boolean()) fail(key, value_text(n) + "must be true or false, got " + type_name(n));
+    return *n.value<bool>();
   }
   std::string string(const toml::node& n, const std::string& key) const {
     if (!n.is_string()) fail(key, value_text(n) + "must be a string, got " + type_name(n));
@@ -715,6 +734,68 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
                  "checkpoint one run with a fixed time.steps)");
     }
   }
+  if (const auto* n = r.find("output", "times")) {
+    if (!n->is_array())
+      r.fail("output.times", "must be an array of times, got " + Reader::type_name(*n));
+    const auto& a = *n->as_array();
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      const std::string key = "output.times[" + std::to_string(i + 1) + "]";
+      const double t = r.number(a[i], key);
+      if (!(t >= p.start && t <= p.end)) {
+        r.fail(key, "= " + format_value(t) + " must be within [time.start, time.end] = [" +
+                        format_value(p.start) + ", " + format_value(p.end) + "]");
+      }
+      if (!p.times.empty() && t < p.times.back()) {
+        r.fail(key, "= " + format_value(t) + " is smaller than the time before it (" +
+                        format_value(p.times.back()) + "): the times must be ascending");
+      }
+      p.times.push_back(t);
+    }
+  }
+  // [[events]]
+  if (const auto* n = root.get("events")) {
+    std::vector<std::string> variables{"t"};
+    for (Eigen::Index i = 1; i <= p.dim; ++i) variables.push_back("x" + std::to_string(i));
+    for (Eigen::Index i = 1; i <= p.dim; ++i) variables.push_back("v" + std::to_string(i));
+    const auto& a = *n->as_array();  // an array of tables (check_unknown_keys)
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      const auto& table = *a[i].as_table();
+      const std::string at = "events[" + std::to_string(i + 1) + "]";
+      ProblemSpec::EventSpec e;
+      const toml::node* name = table.get("name");
+      if (!name) r.fail(at + ".name", "missing (the event's name)");
+      e.name = r.string(*name, at + ".name");
+      if (e.name.empty()) r.fail(at + ".name", "is empty: each event needs a name");
+      for (const auto& earlier : p.events) {
+        if (earlier.name == e.name) {
+          r.fail(at + ".name", "= \"" + e.name +
+                                   "\" is the name of an earlier event: names "
+                                   "must be distinct");
+        }
+      }
+      const toml::node* g = table.get("g");
+      if (!g) r.fail(at + ".g", "missing (a formula in t, x1..xd, v1..vd whose zeros are sought)");
+      e.g = r.string(*g, at + ".g");
+      check_expression(r, at + ".g", e.g, variables);
+      if (const toml::node* dir = table.get("direction")) {
+        e.direction = r.string(*dir, at + ".direction");
+        if (!parse_event_direction(e.direction)) {
+          r.fail(at + ".direction",
+                 "= \"" + e.direction + "\" is not one of both, rising, falling");
+        }
+      }
+      if (const toml::node* terminal = table.get("terminal")) {
+        e.terminal = r.boolean(*terminal, at + ".terminal");
+      }
+      p.events.push_back(std::move(e));
+    }
+  }
+  if (p.checkpoint_every > 0 && (!p.times.empty() || !p.events.empty())) {
+    r.fail("output.checkpoint_every",
+           "= " + std::to_string(p.checkpoint_every) +
+               " cannot be combined with output.times or [[events]] (their progress is not part "
+               "of a checkpoint)");
+  }
   // [reference]
   if (const auto* n = r.find("reference", "position")) {
     if (!n->is_array()) r.fail("reference.position", "must be an array of d formulas in t");
@@ -804,8 +885,11 @@ toml::array to_toml_array(const nlohmann::json& a, const std::string& source,
       out.push_back(v.get<double>());
     } else if (v.is_boolean()) {
       out.push_back(v.get<bool>());
+    } else if (v.is_object()) {  // [[events]]
+      out.push_back(to_toml_table(v, source, key));
     } else {
-      throw ProblemFileError(source + ": " + key + ": arrays hold numbers, strings or arrays");
+      throw ProblemFileError(source + ": " + key +
+                             ": arrays hold numbers, strings, arrays or tables");
     }
   }
   return out;

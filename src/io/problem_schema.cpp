@@ -92,6 +92,19 @@ std::vector<ProblemField> make_schema() {
       {"", "method", "table", "-", "the scheme and its solver", "", nullptr},
       {"", "output", "table", "-", "what is stored", "", nullptr},
       {"", "reference", "table", "-", "an exact solution to compare with", "", nullptr},
+      {"", "events", "array of tables", "-", "zero crossings of g(t, x, v) to locate: [[events]]",
+       FRACVI_BINDING(IntegratorOptions, events),
+       [](P p) {
+         if (p.events.empty()) return Json();
+         Json a = Json::array();
+         for (const ProblemSpec::EventSpec& e : p.events) {
+           a.push_back({{"name", e.name},
+                        {"g", e.g},
+                        {"direction", e.direction},
+                        {"terminal", e.terminal}});
+         }
+         return a;
+       }},
       {"model", "dim", "integer", "required", "d >= 1", FRACVI_BINDING(MechanicalModel, dimension),
        [](P p) { return Json(static_cast<std::int64_t>(p.dim)); }},
       {"model", "mass", "number, array of d numbers, or d×d array", "required", "M, SPD",
@@ -216,8 +229,22 @@ std::vector<ProblemField> make_schema() {
        "fracvi run: write a checkpoint every n steps (0: none)",
        FRACVI_BINDING(ProblemSpec, checkpoint_every),
        [](P p) { return Json(static_cast<std::int64_t>(p.checkpoint_every)); }},
+      {"output", "times", "array of numbers", "[] (none)",
+       "also the state at these times (ascending, in [start, end]; dense output)",
+       FRACVI_BINDING(IntegratorOptions, output_times),
+       [](P p) { return p.times.empty() ? Json() : Json(p.times); }},
       {"reference", "position", "array of d strings", "—", "exact x(t), one formula per component",
        FRACVI_BINDING(ProblemSpec, reference), [](P p) { return strings_json(p.reference); }},
+      // The keys of each [[events]] table: written by the top-level "events" field above.
+      {"events", "name", "string", "required", "names the event in records and files",
+       FRACVI_BINDING(Event, name), nullptr},
+      {"events", "g", "string", "required",
+       "g(t, x1..xd, v1..vd), a formula: its zero crossings are the events",
+       FRACVI_BINDING(Event, function), nullptr},
+      {"events", "direction", "string", "\"both\"", "which crossings: rising, falling or both",
+       FRACVI_BINDING(Event, direction), nullptr},
+      {"events", "terminal", "boolean", "false", "stop the run at the first crossing",
+       FRACVI_BINDING(Event, terminal), nullptr},
   };
 }
 

@@ -123,6 +123,8 @@ PreparedRun prepare_study_run(const ProblemSpec& spec, const std::string& scheme
   prepared.options.mirror = false;
   prepared.options.error_estimate = ErrorEstimateKind::kNone;
   prepared.options.save_every = 1;
+  prepared.options.output_times.clear();  // whole runs on the grid: no stop at a terminal event
+  prepared.options.events.clear();
   return prepared;
 }
 

@@ -512,11 +512,11 @@ class Run(unittest.TestCase):
              "linear_solver, load, error_estimate, mirror, tolerance, max_steps, threads"),
             (["output.stride=2"],
              "fracvi run: <built-in problem>: --set output.stride: unknown key; valid in [output]: "
-             "every, checkpoint_every"),
+             "every, checkpoint_every, times"),
             (["solver.kind=lu"],
              "fracvi run: <built-in problem>: --set solver.kind: unknown section [solver]; valid "
              "sections: [model], [model.chain], [initial], [boundary], [time], [method], "
-             "[output], [reference]"),
+             "[output], [reference], [events]"),
             (["time.steps=many"],
              "fracvi run: <built-in problem>: time.steps = 'many' must be an integer, got a "
              "string"),

@@ -4,6 +4,7 @@ Each example states its checks in lines of the form
     # check: summary KEY OP VALUE        (OP is ==, <, <=, >, >=; the value of summary.json)
     # check: nonincreasing COLUMN TOL    (trajectory.csv column never rises by more than TOL)
     # check: order STEPS EXPECTED TOL    (fracvi convergence --steps STEPS: fitted order)
+    # check: event NAME EXPECTED TOL     (the first crossing of [[events]] NAME: |t - EXPECTED|)
 Usage (ctest): python3 examples_test.py FRACVI_BINARY EXAMPLES_DIR
 """
 import csv
@@ -72,6 +73,11 @@ class Examples(unittest.TestCase):
             self.assertEqual(r.returncode, 0, r.stderr)
             fitted = float(re.search(r"least-squares order: (\S+)", r.stdout).group(1))
             self.assertAlmostEqual(fitted, expected, delta=tol, msg=r.stdout)
+        elif kind == "event":
+            name, expected, tol = check[1], float(check[2]), float(check[3])
+            times = [e["t"] for e in summary["events"] if e["name"] == name]
+            self.assertTrue(times, f"event {name!r} did not occur: {summary['events']}")
+            self.assertLessEqual(abs(times[0] - expected), tol, f"event {name!r} at {times[0]}")
         else:
             self.fail(f"unknown check kind {kind!r}")
 

@@ -13,6 +13,7 @@
 #include <cstdlib>
 
 #include "../support/test_problems.hpp"
+#include "fracvi/integrate/dense_output.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/autodiff_potential.hpp"
 #include "fracvi/model/chain_potential.hpp"
@@ -61,6 +62,21 @@ TEST_F(NoAllocation, LinearAlphaHalf) {
 TEST_F(NoAllocation, NonlinearAlphaHalf) {
   Integrator integ(base(0.5, test::pendulum_pair()));
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+// Dense output and events active: output times (one every few steps, off the grid) and formula
+// events of the problem files' kind (expression tape), one of them crossing zero (root search on
+// the interpolant, a recorded crossing within the reserved records).
+TEST_F(NoAllocation, OutputTimesAndFormulaEvents) {
+  IntegratorOptions options;
+  for (int j = 0; j < 50; ++j) options.output_times.push_back(0.0389 * j + 0.0123);
+  options.events = {
+      formula_event("turn", "v1", 2, EventDirection::kBoth, false, "events[0].g"),
+      formula_event("threshold", "x1 - 10", 2, EventDirection::kRising, false, "events[1].g")};
+  Integrator integ(base(0.75, test::pendulum_pair()), fvi_gl(), options);
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+  EXPECT_GE(integ.solution().events.size(), 1u);  // the search did run
+  EXPECT_EQ(integ.solution().output_t.size(), 50);
 }
 
 TEST_F(NoAllocation, NonlinearFractionalDirectHistory) {

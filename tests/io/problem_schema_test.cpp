@@ -196,6 +196,8 @@ std::vector<std::string> differences(const fracvi::ProblemSpec& a, const fracvi:
   check(a.threads == b.threads, "threads");
   check(a.every == b.every, "every");
   check(a.checkpoint_every == b.checkpoint_every, "checkpoint_every");
+  check(a.times == b.times, "times");
+  check(a.events == b.events, "events");
   check(a.reference == b.reference, "reference");
   return out;
 }
@@ -347,6 +349,30 @@ const std::vector<Case>& cases() {
       {"method.threads", "", [](Json& j) { j["method"]["threads"] = 3; }},
       {"output.every", "", [](Json& j) { j["output"]["every"] = 5; }},
       {"output.checkpoint_every", "", [](Json& j) { j["output"]["checkpoint_every"] = 250; }},
+      {"output.times", "",
+       [](Json& j) {
+         j["output"]["times"] = {0.1, 1.0 / 3.0, 1.0};
+       }},
+      {"events", "",
+       [](Json& j) {
+         j["events"] = Json::array({{{"name", "a"}, {"g", "x1"}}, {{"name", "b"}, {"g", "v2"}}});
+       }},
+      {"events.name", "events",
+       [](Json& j) {
+         j["events"] = Json::array({{{"name", "zero crossing"}, {"g", "x1"}}});
+       }},
+      {"events.g", "events",
+       [](Json& j) {
+         j["events"] = Json::array({{{"name", "g"}, {"g", "x1 - 0.5*sin(t) + v2/3"}}});
+       }},
+      {"events.direction", "events",
+       [](Json& j) {
+         j["events"] = Json::array({{{"name", "up"}, {"g", "x1"}, {"direction", "rising"}}});
+       }},
+      {"events.terminal", "events",
+       [](Json& j) {
+         j["events"] = Json::array({{{"name", "stop"}, {"g", "x1"}, {"terminal", true}}});
+       }},
       {"reference.position", "",
        [](Json& j) {
          j["reference"]["position"] = {"cos(t)", "0"};
@@ -406,6 +432,13 @@ TEST(ProblemWriters, WrittenKeysAreSchemaFields) {
     for (const auto& [section, table] : json.items()) {
       if (!table.is_object()) {
         EXPECT_NE(fracvi::find_field("", section), nullptr) << section;
+        if (table.is_array()) {  // [[events]]: the keys of each table
+          for (const auto& element : table) {
+            if (!element.is_object()) continue;
+            for (const auto& [key, unused] : element.items())
+              EXPECT_NE(fracvi::find_field(section, key), nullptr) << section << "." << key;
+          }
+        }
         continue;
       }
       for (const auto& [key, value] : table.items()) {
@@ -441,7 +474,7 @@ TEST(ProblemWriters, SetOverridesAreCheckedAgainstTheSchema) {
   EXPECT_EQ(message("output.every.n=1"),
             "<built-in>: --set output.every.n: unknown section [output.every]; valid sections: "
             "[model], [model.chain], [initial], [boundary], [time], [method], [output], "
-            "[reference]");
+            "[reference], [events]");
   EXPECT_NE(message("nme=x").find("--set nme: unknown key (did you mean 'name'?); valid at the "
                                   "top level: name, model"),
             std::string::npos)

@@ -23,6 +23,10 @@ enum class Status {
   /// SIGHUP in `fracvi run`, Ctrl-C in Python); the trajectory up to the last completed step is
   /// kept, as for a failure.
   kInterrupted,
+  /// Stopped by a terminal event (IntegratorOptions::events, core/event.hpp) before the last
+  /// step: not a failure. The rows end with the step in which the event was found; the crossing
+  /// itself (time and interpolated state) is in Solution::events.
+  kEvent,
 };
 
 std::string_view to_string(Status status);

@@ -57,6 +57,17 @@ struct ToleranceRun {
   std::string status;
 };
 
+/// The zero crossings of IntegratorOptions::events a run found (in time order), column-wise.
+struct EventLog {
+  std::vector<std::string> names;  ///< the events' names, by index
+  std::vector<std::size_t> event;  ///< which event (index into names), per crossing
+  std::vector<double> t;           ///< the crossing time (root of g on the dense interpolant)
+  std::vector<std::size_t> step;   ///< the step k + 1 whose interval (t_k, t_{k+1}] holds it
+  std::vector<int> direction;      ///< +1 rising, −1 falling
+  std::vector<double> x, v;        ///< the interpolated state there, row-major (crossings × d)
+  [[nodiscard]] std::size_t size() const { return t.size(); }
+};
+
 struct Solution {
   Eigen::VectorXd t;              ///< t_k of the stored steps
   std::vector<std::size_t> step;  ///< the step index k of each stored row
@@ -67,13 +78,25 @@ struct Solution {
   Eigen::VectorXd dissipated;  ///< W_k (idem)
   Eigen::VectorXd balance;     ///< E_k + W_k − E_0 (idem)
 
+  /// The state at IntegratorOptions::output_times reached by the run (all of them unless it
+  /// stopped early): the dense interpolant of every step, whatever save_every.
+  Eigen::VectorXd output_t;
+  RowMatrixXd output_x;
+  RowMatrixXd output_v;
+  /// The crossings of IntegratorOptions::events.
+  EventLog events;
+
   Status status = Status::kRunning;
   std::string message;  ///< empty on success; otherwise names the step, the time and the cause
 
   std::size_t steps_done = 0;         ///< completed steps; rows 0 … steps_done are valid
   std::size_t newton_iterations = 0;  ///< total over all steps (1 per step for linear problems)
   std::size_t max_newton_iterations_per_step = 0;
-  std::size_t save_every = 1;     ///< IntegratorOptions::save_every of the run
+  std::size_t save_every = 1;  ///< IntegratorOptions::save_every of the run
+  /// The grid's h (InitialValueProblem::step_size()): the dense output's interpolant uses it, so
+  /// that interpolate() reproduces the run's output_x bit for bit; 0 when unknown (a solution
+  /// read back from files), then t[i+1] − t[i].
+  double step_size = 0.0;
   std::string linear_solver;      ///< factorisation used: "dense", "banded" or "sparse"
   std::size_t history_bytes = 0;  ///< memory of the damping history (History::memory_bytes)
   /// The damping memory used: "direct", "fast", "local" or "none" (what "auto" chose).

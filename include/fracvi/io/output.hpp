@@ -82,6 +82,15 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& solution);
 /// stored row, 17 significant digits (every double reads back to itself), written atomically.
 void write_trajectory_csv(const std::filesystem::path& file, const Solution& solution);
 
+/// times.csv (`[output] times`): `t,x1..xd,v1..vd`, one line per requested time the run reached,
+/// the dense output (Solution::output_t, output_x, output_v).
+void write_times_csv(const std::filesystem::path& file, const Solution& solution);
+
+/// events.csv (`[[events]]`): `event,direction,step,t,x1..xd,v1..vd`, one line per crossing in
+/// time order (Solution::events; direction "rising" or "falling", step the k + 1 of the interval
+/// (t_k, t_{k+1}] that holds it).
+void write_events_csv(const std::filesystem::path& file, const Solution& solution);
+
 /// Reads back what make_summary() wrote about the solution itself (status, message, steps, the
 /// statistics, the error estimate, the tolerance runs; null numbers are NaN) into `solution`,
 /// whose arrays are left alone: the inverse of make_summary for everything but the final state

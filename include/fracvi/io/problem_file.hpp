@@ -15,6 +15,8 @@
 //              linear_solver, threads
 //   [output]   every                (the stride of the stored states)
 //              checkpoint_every     (fracvi run's checkpoints, io/checkpoint.hpp)
+//              times                (the state at these times too, by dense output)
+//   [[events]] name, g, direction, terminal   (zero crossings of g(t, x, v); any number)
 //   [reference] position   (optional exact solution: d formulas in t)
 //
 // Parsing validates everything before a single step is taken: unknown sections and keys are
@@ -118,6 +120,18 @@ struct ProblemSpec {
   /// `fracvi run` writes a checkpoint of the whole state every n steps (0: none), from which
   /// `fracvi run --resume DIR` continues bit-for-bit (io/checkpoint.hpp)
   long long checkpoint_every = 0;
+  /// the state at these times too (IntegratorOptions::output_times), ascending, in [start, end]
+  std::vector<double> times;
+
+  // [[events]]: zero crossings of g(t, x1..xd, v1..vd) (IntegratorOptions::events)
+  struct EventSpec {
+    std::string name;
+    std::string g;
+    std::string direction = std::string(to_string(EventDirection::kBoth));
+    bool terminal = false;
+    friend bool operator==(const EventSpec&, const EventSpec&) = default;
+  };
+  std::vector<EventSpec> events;
 
   // [reference]
   std::vector<std::string> reference;  ///< exact x(t), empty or d formulas in t

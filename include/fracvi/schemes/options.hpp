@@ -7,7 +7,9 @@
 #include <functional>
 #include <optional>
 #include <string_view>
+#include <vector>
 
+#include "fracvi/core/event.hpp"
 #include "fracvi/core/newton_options.hpp"
 #include "fracvi/memory/history.hpp"
 #include "fracvi/solve/symmetric_factor.hpp"
@@ -91,6 +93,14 @@ struct IntegratorOptions {
   /// freedom would otherwise keep 16 GB of positions and velocities. Diagnostics and the mirror
   /// check still see every step (the mirror error is then the maximum over the stored rows).
   std::size_t save_every = 1;
+  /// Times at which the run also outputs the state (Solution::output_t, output_x, output_v),
+  /// ascending, in [t_0, t_end]: the cubic Hermite interpolant of (x_k, v_k, x_{k+1}, v_{k+1})
+  /// evaluated during the run from every step's full-precision state, so save_every does not
+  /// thin them (docs/theory/dense_output.md). A time on the grid gives that step's state exactly.
+  std::vector<double> output_times;
+  /// Zero crossings of g(t, x, v) located on the same interpolant, recorded in Solution::events,
+  /// optionally terminal (core/event.hpp). Names distinct and non-empty.
+  std::vector<Event> events;
   /// Threads for the work over degrees of freedom (fast-history recursions): 0 = OpenMP's default
   /// (all cores, or OMP_NUM_THREADS); small systems run on one thread regardless.
   int threads = 0;
