@@ -159,6 +159,103 @@ def _schema():
 
 _SECTIONS, _FLAT_KEYS = _schema()
 
+# U given as Python functions (issue 16 item 2): potential=<function> with gradient= and an
+# optional hessian=, each a function of (x, t) with x a NumPy array of shape (d,). They are not
+# keys of the problem files: the C++ reader gets the placeholder formula "0", and the problem
+# records the label "python:module:name, module:name[, module:name]" (callables.hpp).
+_FUNCTION_KEYS = ("gradient", "hessian")
+_PYTHON_PREFIX = "python:"
+_FUNCTIONS_RULE = ("U as Python functions: potential=U(x, t) -> float, gradient=g(x, t) -> array "
+                   "of shape (d,), and optionally hessian=H(x, t) -> (d, d) array or "
+                   "scipy.sparse matrix (without it, central differences of the gradient)")
+
+
+def _function_name(function):
+    module = getattr(function, "__module__", None) or "?"
+    qualname = getattr(function, "__qualname__", None) or type(function).__qualname__
+    return f"{module}:{qualname}"
+
+
+def _import_functions(label, source):
+    """The functions a "python:module:name, ..." label names, imported again."""
+    import importlib
+    names = [n.strip() for n in label[len(_PYTHON_PREFIX):].split(",")]
+    if len(names) not in (2, 3) or not all(":" in n for n in names):
+        raise ProblemError(f'{source}: model.potential = "{label}" is not the label of Python '
+                           f'potential functions ("python:module:name, module:name[, '
+                           f'module:name]": U, its gradient and optionally its Hessian)')
+    functions = []
+    for name in names:
+        module, _, qualname = name.partition(":")
+        try:
+            function = importlib.import_module(module)
+            for part in qualname.split("."):
+                function = getattr(function, part)
+        except (ImportError, AttributeError) as error:
+            raise ProblemError(
+                f'{source}: model.potential = "{label}" names the Python function {name}, which '
+                f'cannot be imported here ({error}; a lambda, a local function or one of '
+                f'__main__ cannot be): pass the functions again, functions=dict(potential=U, '
+                f'gradient=g, hessian=H) to Problem.from_dict, Problem.from_toml or '
+                f'fracvi.load') from None
+        functions.append(function)
+    return tuple(functions) + (None,) * (3 - len(functions))
+
+
+def _as_functions(functions, source):
+    """functions=dict(potential=U, gradient=g[, hessian=H]) as the tuple (U, g, H), or None."""
+    if functions is None:
+        return None
+    if not isinstance(functions, Mapping) or set(functions) - {"potential", "gradient", "hessian"}:
+        raise TypeError(f"{source}: functions = {functions!r} must be a dict with the keys "
+                        f"potential, gradient and optionally hessian ({_FUNCTIONS_RULE})")
+    return (functions.get("potential"), functions.get("gradient"), functions.get("hessian"))
+
+
+def _take_functions(document, source, functions=None):
+    """(document for the C++ reader, functions or None): U as Python functions — model.potential
+    a callable with model.gradient (and model.hessian), the label a run from Python recorded
+    (imported again), or `functions` (U, g, H) given by the caller, which win — is taken out of
+    [model] and replaced by the placeholder formula "0"."""
+    model = document.get("model") if isinstance(document, Mapping) else None
+    if not isinstance(model, Mapping):
+        if functions is not None:
+            raise ProblemError(f"{source}: functions= given, but the problem has no [model]")
+        return document, None
+    model = dict(model)
+    potential = model.get("potential")
+    given = {key: model.pop(key) for key in _FUNCTION_KEYS if key in model}
+    if functions is None:
+        if callable(potential):
+            functions = (potential, given.get("gradient"), given.get("hessian"))
+        elif isinstance(potential, str) and potential.startswith(_PYTHON_PREFIX) and not given:
+            functions = _import_functions(potential, source)
+        else:
+            for key, value in given.items():
+                raise ProblemError(f"{source}: model.{key} = {value!r} goes with a Python "
+                                   f"potential function (potential=<function>); a formula "
+                                   f"potential has exact derivatives of its own")
+            return document, None
+    value, gradient, hessian = functions
+    for key, function, rule in (("potential", value, "U(x, t) -> float"),
+                                ("gradient", gradient, "∇U(x, t) -> array of shape (d,)")):
+        if not callable(function):
+            raise ProblemError(f"{source}: model.{key} = {function!r} is not a function: "
+                               f"{rule} is required ({_FUNCTIONS_RULE})")
+    if hessian is not None and not callable(hessian):
+        raise ProblemError(f"{source}: model.hessian = {hessian!r} is not a function or None "
+                           f"({_FUNCTIONS_RULE})")
+    model["potential"] = "0"
+    return dict(document, model=model), functions
+
+
+def _with_functions(spec, functions):
+    """The native problem with U as Python functions (checked once at (x(t0), t0))."""
+    if functions is None:
+        return spec
+    label = _PYTHON_PREFIX + ", ".join(_function_name(f) for f in functions if f is not None)
+    return _fracvi.with_python_potential(spec, label, *functions)
+
 
 class Problem:
     """A validated problem: the model, initial data, time grid and method of `fracvi run`.
@@ -176,14 +273,32 @@ class Problem:
     overrides=["model.alpha=0.6", ...] (or one such string) are applied last, like `fracvi run
     --set`.
 
+    U may also be Python functions of (x, t), x a NumPy array of shape (d,):
+    Problem(potential=U, gradient=dU, hessian=H, ...) with U(x, t) -> float, dU(x, t) -> array
+    of shape (d,), H(x, t) -> (d, d) array or scipy.sparse matrix (optional: without it, central
+    differences of dU, which only slow Newton down). Each is called once here at (x(t0), t0) to
+    check it. They are slower than formulas (docs/python.md, "Python functions": each call takes
+    the GIL and makes NumPy arrays); an exception inside one ends a run with status
+    "callback-error", its traceback in the message, and the trajectory so far. The problem
+    records them as "python:module:name, ..."; to_dict, pickling and fracvi.load import them
+    again by that name (a lambda or a function of __main__ cannot be: pass functions= then).
+
     Invalid input raises ProblemError (a ValueError) with the message `fracvi run` prints.
     Integers must be Python ints where the schema wants integers (time.steps = 100, not 100.0).
     """
 
-    __slots__ = ("_spec",)
+    __slots__ = ("_spec", "_functions")
 
     def __init__(self, *, source="<keywords>", overrides=(), **keywords):
         document = {}
+        for key in _FUNCTION_KEYS:  # gradient=, hessian= (Python functions) belong to [model]
+            if key in keywords:
+                model = keywords.setdefault("model", {})
+                if isinstance(model, Mapping):
+                    if key in model:
+                        raise ProblemError(f"{source}: model.{key} is given twice (as {key}= "
+                                           f"and in model=)")
+                    keywords["model"] = dict(model, **{key: keywords.pop(key)})
         for key, value in keywords.items():
             if key in _SECTIONS:
                 document.setdefault(key, {})
@@ -205,30 +320,47 @@ class Problem:
                 raise ProblemError(f"{source}: {section}.{key} is given twice (as {key}= and in "
                                    f"{section}=)")
             target[key] = value
-        self._spec = _fracvi.parse_dict(_plain(document), source,
-                                        _assignments(overrides, "Problem"))
+        document, functions = _take_functions(document, source)
+        spec = _fracvi.parse_dict(_plain(document), source, _assignments(overrides, "Problem"))
+        self._spec = _with_functions(spec, functions)
+        self._functions = functions
 
     @classmethod
-    def from_dict(cls, document, *, source="<dict>", overrides=()):
+    def from_dict(cls, document, *, source="<dict>", overrides=(), functions=None):
         """A problem from the nested dict of a problem file: {"name": ..., "model": {...},
-        "initial": {...}, "time": {...}, "method": {...}, "output": {...}}."""
-        return cls._wrap(_fracvi.parse_dict(_plain(document), source,
-                                            _assignments(overrides, "Problem.from_dict")))
+        "initial": {...}, "time": {...}, "method": {...}, "output": {...}}. functions=
+        dict(potential=U, gradient=g, hessian=H) gives U as Python functions (see the class),
+        also in place of the "python:..." label a problem with such functions records."""
+        document, functions = _take_functions(
+            document, source, _as_functions(functions, "Problem.from_dict"))
+        spec = _fracvi.parse_dict(_plain(document), source,
+                                  _assignments(overrides, "Problem.from_dict"))
+        return cls._wrap(spec, functions)
 
     @classmethod
-    def from_toml(cls, toml, *, source=None, overrides=()):
+    def from_toml(cls, toml, *, source=None, overrides=(), functions=None):
         """A problem from a TOML file (a path: str or os.PathLike) or from TOML text (a str that
-        contains a newline or '='). Messages name the file, or `source` (default "<string>")."""
-        if isinstance(toml, os.PathLike) or (isinstance(toml, str) and "\n" not in toml and
-                                             "=" not in toml):
-            if source is not None:
-                with open(toml, encoding="utf-8") as f:
-                    return cls.from_toml(f.read(), source=source, overrides=overrides)
+        contains a newline or '='). Messages name the file, or `source` (default "<string>").
+        functions= as for from_dict (a problem.toml written by a run with Python functions names
+        them; they are imported again, or taken from functions=)."""
+        is_path = isinstance(toml, os.PathLike) or (isinstance(toml, str) and "\n" not in toml and
+                                                   "=" not in toml)
+        if not is_path and not isinstance(toml, str):
+            raise TypeError(f"from_toml takes a path or TOML text, not {type(toml).__name__}")
+        if is_path and (source is not None or functions is not None or
+                        _names_functions(toml, is_path)):
+            with open(toml, encoding="utf-8") as f:
+                return cls.from_toml(f.read(), source=source or os.fspath(toml),
+                                     overrides=overrides, functions=functions)
+        if is_path:
             return cls._wrap(_fracvi.load_toml(os.fspath(toml),
                                                _assignments(overrides, "Problem.from_toml")))
-        if not isinstance(toml, str):
-            raise TypeError(f"from_toml takes a path or TOML text, not {type(toml).__name__}")
-        return cls._wrap(_fracvi.parse_toml(toml, source or "<string>",
+        source = source or "<string>"
+        if functions is not None or _names_functions(toml, is_path):
+            import tomllib
+            return cls.from_dict(tomllib.loads(toml), source=source, overrides=overrides,
+                                 functions=functions)
+        return cls._wrap(_fracvi.parse_toml(toml, source,
                                             _assignments(overrides, "Problem.from_toml")))
 
     @classmethod
@@ -239,10 +371,22 @@ class Problem:
                                             _assignments(overrides, "Problem.default")))
 
     @classmethod
-    def _wrap(cls, spec):
+    def _wrap(cls, spec, functions=None):
         p = object.__new__(cls)
-        p._spec = spec
+        p._spec = _with_functions(spec, functions)
+        p._functions = functions
         return p
+
+    def _rebuild(self, document, overrides=()):
+        """Problem.from_dict(document) with this problem's source and Python functions."""
+        functions = self._functions
+        if functions is not None and any(a.split("=", 1)[0].strip() == "model.potential"
+                                         for a in overrides):
+            functions = None  # an override gives U as a formula instead
+            document = dict(document, model=dict(document["model"], potential="0"))
+        return Problem.from_dict(document, source=self.source, overrides=overrides,
+                                 functions=None if functions is None else
+                                 dict(zip(("potential", "gradient", "hessian"), functions)))
 
     def with_overrides(self, *overrides):
         """A copy with "section.key=value" assignments applied (like `fracvi run --set`): what
@@ -250,7 +394,7 @@ class Problem:
         p.with_overrides("model.alpha=0.6", "time.steps=200")."""
         assignments = [a for group in overrides
                        for a in _assignments(group, "with_overrides")]
-        return Problem.from_dict(self.to_dict(), source=self.source, overrides=assignments)
+        return self._rebuild(self.to_dict(), assignments)
 
     def to_dict(self):
         """The fully resolved problem (every default filled in) as nested dicts: the "problem"
@@ -264,11 +408,13 @@ class Problem:
         return self._spec.to_toml()
 
     def __reduce__(self):
-        # Pickled as its resolved dict (validated again when unpickled).
-        return _unpickle_problem, (self.to_dict(), self.source)
+        # Pickled as its resolved dict (validated again when unpickled); Python functions by
+        # reference, as pickle does (a lambda does not pickle).
+        return _unpickle_problem, (self.to_dict(), self.source, self._functions)
 
     def __eq__(self, other):
-        return isinstance(other, Problem) and self.to_dict() == other.to_dict()
+        return (isinstance(other, Problem) and self.to_dict() == other.to_dict() and
+                self._functions == other._functions)
 
     __hash__ = None
 
@@ -294,7 +440,14 @@ class Problem:
     alpha = property(lambda self: self._spec.alpha, doc="Lagrangian order α ∈ [0, 1]")
     damping_order = property(lambda self: 2.0 * self._spec.alpha, doc="2α")
     convention = property(lambda self: self._spec.convention)
-    potential = property(lambda self: self._spec.potential, doc="U(x1..xd, t)")
+    potential = property(lambda self: self._spec.potential if self._functions is None else
+                         self._functions[0],
+                         doc="U(x1..xd, t): the formula, or the Python function U(x, t)")
+    gradient = property(lambda self: None if self._functions is None else self._functions[1],
+                        doc="the Python function ∇U(x, t) of a potential given as functions, "
+                            "else None (a formula's derivatives are exact and internal)")
+    hessian = property(lambda self: None if self._functions is None else self._functions[2],
+                       doc="the Python function ∇²U(x, t), or None")
     force = property(lambda self: list(self._spec.force), doc="f(t): [] or d formulas")
     lagrangian = property(lambda self: self._spec.lagrangian,
                           doc="a general L(t, x, y, xdot, ydot, dx, dy), or '' (mechanical model)")
@@ -331,8 +484,21 @@ class Problem:
                      doc="output.every: the solution stores every n-th state and the last")
 
 
-def _unpickle_problem(document, source):
-    return Problem.from_dict(document, source=source)
+def _names_functions(toml, is_path):
+    """Whether TOML text (or the file) gives model.potential as a "python:..." label."""
+    if is_path:
+        try:
+            with open(toml, encoding="utf-8") as f:
+                toml = f.read()
+        except OSError:
+            return False  # the native reader reports it
+    import re
+    return re.search(r"""potential\s*=\s*["']""" + _PYTHON_PREFIX, toml) is not None
+
+
+def _unpickle_problem(document, source, functions=None):
+    return Problem.from_dict(document, source=source, functions=None if functions is None else
+                             dict(zip(("potential", "gradient", "hessian"), functions)))
 
 
 def _as_problem(problem):
@@ -709,7 +875,12 @@ class Integrator:
 
     def step(self):
         """Takes one step (nothing once the run has ended) and returns the status."""
-        return self._checked(self._native.step())
+        status = self._native.step()
+        if self._native.interrupt is not None:  # Ctrl-C inside a Python model function
+            interrupt = self._native.interrupt
+            interrupt.solution = self.solution()
+            raise interrupt
+        return self._checked(status)
 
     def run(self, until=None, *, steps=None, observer=None):
         """Steps to the last grid time <= until, or `steps` more steps, or to the end (neither);
@@ -873,7 +1044,7 @@ def _with_fields(problem, fields, function, valid_fields, run_options):
     document = problem.to_dict()
     for section, values in sections.items():
         document.setdefault(section, {}).update(values)
-    return Problem.from_dict(document, source=problem.source)
+    return problem._rebuild(document)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1041,7 +1212,7 @@ def _write_npz(solution, directory):
 _TRAJECTORY_ARRAYS = ("t", "step", "x", "v", "energy", "dissipated", "balance")
 
 
-def load(directory):
+def load(directory, *, functions=None):
     """The Solution of a run directory written by `fracvi run --out`, fracvi.write (CSV or npz)
     or a sweep's saved case (out/cases/<case>/), with its problem: problem.toml (or, without it,
     summary.json's "problem"), the statistics and status of summary.json, the rows of
@@ -1053,6 +1224,9 @@ def load(directory):
     is not restored. A directory without summary.json (a run still going, or stopped before it
     wrote one), a trajectory that does not match the summary or the problem, or the output of
     `fracvi bvp` or `fracvi sweep` raises an error naming the file and what is wrong.
+
+    A run whose potential was given as Python functions records their names: they are imported
+    again, or given as functions=dict(potential=U, gradient=g, hessian=H).
     """
     directory = os.fspath(directory)
     if not os.path.isdir(directory):
@@ -1072,9 +1246,10 @@ def load(directory):
                          f"fracvi.load reads initial value runs")
     toml = os.path.join(directory, "problem.toml")
     if os.path.exists(toml):
-        problem = Problem.from_toml(toml)
+        problem = Problem.from_toml(toml, functions=functions)
     elif isinstance(summary.get("problem"), dict):
-        problem = Problem.from_dict(summary["problem"], source=f'{summary_path}: "problem"')
+        problem = Problem.from_dict(summary["problem"], source=f'{summary_path}: "problem"',
+                                    functions=functions)
     else:
         raise FileNotFoundError(f"load: {directory} has neither problem.toml nor a \"problem\" "
                                 f"in summary.json")
@@ -1147,6 +1322,12 @@ def sweep(problem, parameters, *, jobs=1, combine="grid", save="final", out=None
     lists of different lengths, ...) raises ProblemError.
     Returns a SweepResult: column name -> NumPy array in case order, and .parameters."""
     if isinstance(problem, Problem):
+        if problem._functions is not None:
+            raise ProblemError(f"sweep: {problem.source}: the potential is given as Python "
+                               f"functions, and a sweep's cases are read from the problem's "
+                               f"dict like problem files, which cannot hold functions: give U "
+                               f"as a formula, or loop over fracvi.integrate "
+                               f"(problem.with_overrides(...), multiprocessing.Pool.map)")
         document = {"problem": problem.to_dict()}
     elif isinstance(problem, Mapping):
         document = {"problem": _plain(problem)}

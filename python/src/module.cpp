@@ -36,6 +36,7 @@
 #include <utility>
 #include <vector>
 
+#include "callables.hpp"
 #include "fracvi/analysis/comparison.hpp"
 #include "fracvi/analysis/error_estimate.hpp"
 #include "fracvi/discrete/operators.hpp"
@@ -384,6 +385,22 @@ PreparedRun prepare_python_run(const ProblemSpec& spec, const RunOptions& run,
   return prepared;
 }
 
+/// A KeyboardInterrupt or SystemExit raised inside a Python potential function during the run
+/// (callables.hpp) becomes the run's interrupt, as a Ctrl-C between steps would: `slot` keeps the
+/// first, and the failed step's status "callback-error" becomes "interrupted".
+void absorb_raised_interrupt(const std::shared_ptr<const Potential>& potential, Solution& solution,
+                             py::object& slot) {
+  py::object raised = python::take_raised_interrupt(potential);
+  if (raised.is_none()) return;
+  if (slot.is_none()) slot = raised;
+  if (solution.status == Status::kCallbackError) {
+    solution.status = Status::kInterrupted;
+    solution.message = "interrupted after step " + std::to_string(solution.steps_done) + " (" +
+                       py::str(py::type::of(raised).attr("__name__")).cast<std::string>() +
+                       " inside a model function)";
+  }
+}
+
 std::unique_ptr<Run> run_problem(const ProblemSpec& spec, const RunOptions& run_options) {
   PreparedRun prepared = prepare_python_run(spec, run_options, "fracvi.integrate");
   const InitialValueProblem& problem = prepared.problem;
@@ -391,9 +408,12 @@ std::unique_ptr<Run> run_problem(const ProblemSpec& spec, const RunOptions& run_
   auto run = std::make_unique<Run>();
   run->spec = spec;
   options.interrupt = python_interrupt(run->interrupt);
-  // The potential and forcing are compiled formulas: no Python runs during the integration
-  // (except the signal handlers, python_interrupt).
-  py::gil_scoped_release release;
+  // Compiled formulas run without the GIL, so other Python threads run meanwhile (only the signal
+  // handlers need it, python_interrupt). Python model functions need it at every call: the run
+  // keeps it then (taking it back at each call costs more than the call, measured in
+  // bench/python_functions_bench.py).
+  std::optional<py::gil_scoped_release> release;
+  if (!python::is_python_potential(problem.model.potential)) release.emplace();
   if (options.tolerance > 0.0) {
     // method.tolerance: N doubled from time.steps until the error estimate meets it.
     run->solution = integrate_to_tolerance(problem, prepared.method, options);
@@ -402,6 +422,8 @@ std::unique_ptr<Run> run_problem(const ProblemSpec& spec, const RunOptions& run_
     // Accuracy, not consistency: Richardson from companion runs (analysis/error_estimate.hpp).
     estimate_error(problem, prepared.method, options, run->solution);
   }
+  release.reset();
+  absorb_raised_interrupt(problem.model.potential, run->solution, run->interrupt);
   return run;
 }
 
@@ -515,11 +537,13 @@ class Stepping {
   }
 
   std::string step() {
+    interrupt_ = py::none();
     {
-      const Unlocked unlocked(stepping_);  // compiled formulas: no Python during a step
+      // The GIL released: compiled formulas need none, Python model functions take it back.
+      const Unlocked unlocked(stepping_);
       integrator_->step();
     }
-    return status();
+    return raised_status();
   }
 
   /// Steps until step `target` (at most) is done or the run ends. observer(k, t, x, v, p, energy,
@@ -539,7 +563,7 @@ class Stepping {
         const Unlocked unlocked(stepping_);
         while (going() && !interrupted()) integ.step();
       }
-      return status();
+      return raised_status();
     }
     if (integ.steps_done() == 0) observer(*state());
     while (going() && !interrupted()) {
@@ -554,7 +578,7 @@ class Stepping {
         observer(*state());
       }
     }
-    return status();
+    return raised_status();
   }
 
   /// The solution so far (Integrator::snapshot) as a Run. Once the integration has ended, the
@@ -631,6 +655,14 @@ class Stepping {
     bool& stepping_;
     std::optional<py::gil_scoped_release> release_;
   };
+
+  /// status(), after keeping in interrupt() what a Python model function raised to interrupt
+  /// (KeyboardInterrupt, SystemExit): the step that called it ended the run ("callback-error").
+  std::string raised_status() {
+    py::object raised = python::take_raised_interrupt(prepared_.problem.model.potential);
+    if (!raised.is_none() && interrupt_.is_none()) interrupt_ = raised;
+    return status();
+  }
 
   PreparedRun prepared_;
   std::unique_ptr<Integrator> integrator_;
@@ -928,6 +960,41 @@ Curve python_curve(py::handle c, Eigen::Index d, const std::string& name) {
   return curve;
 }
 
+/// `spec` with U given as Python functions (callables.hpp) in place of its formula, labelled
+/// `label` (kPythonPotentialPrefix...). The functions are called once at (x(t0), t0), so that a
+/// function that fails or returns the wrong shape is reported now, naming the field and the rule,
+/// and not at the first step.
+ProblemSpec with_python_potential(const ProblemSpec& spec, const std::string& label,
+                                  py::object value, py::object gradient, py::object hessian) {
+  if (spec.chain || !spec.lagrangian.empty()) {
+    throw ProblemError(spec.source + ": potential=<function> and " +
+                       (spec.chain ? "model.chain" : "model.lagrangian") +
+                       " are both given; give one (the function replaces the potential formula)");
+  }
+  ProblemSpec s = spec;
+  s.potential = label;
+  s.potential_object = python::make_python_potential(s.dim, std::move(value), std::move(gradient),
+                                                     std::move(hessian));
+  if (s.position.size() != s.dim) return s;  // a boundary value problem without [initial]
+  const Potential& u = *s.potential_object;
+  Eigen::VectorXd g(s.dim);
+  Eigen::MatrixXd h(s.dim, s.dim);
+  try {
+    (void)u.value(s.position, s.start);
+    u.gradient(s.position, s.start, g);
+    u.hessian(s.position, s.start, h);
+  } catch (const std::runtime_error& e) {
+    py::object raised = python::take_raised_interrupt(s.potential_object);
+    if (!raised.is_none()) {  // Ctrl-C inside the function: raise it, not a ProblemError
+      PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(raised.ptr())), raised.ptr());
+      throw py::error_already_set();
+    }
+    throw ProblemError(s.source + ": at the initial state (x(t0), t0 = " +
+                       repr_text(py::float_(s.start)) + "): " + e.what());
+  }
+  return s;
+}
+
 }  // namespace
 
 void bind(py::module_& m) {
@@ -999,6 +1066,8 @@ void bind(py::module_& m) {
       },
       py::arg("document"), py::arg("source"), py::arg("overrides"));
   m.def("default_problem_toml", [] { return std::string(default_problem_toml()); });
+  m.def("with_python_potential", &with_python_potential, py::arg("spec"), py::arg("label"),
+        py::arg("value"), py::arg("gradient"), py::arg("hessian"));
 
   // --- solutions ---------------------------------------------------------------------------
   py::class_<Run>(m, "Run", "A Solution and the problem it solves (C++ fracvi::Solution).")

@@ -155,7 +155,9 @@ struct Integrator::Impl {
   std::vector<double> g_before, g_after;
   std::vector<std::pair<double, std::size_t>> crossings;
 
-  std::array<char, 1024> message{};
+  // The run's message: up to 480 characters of its own around a callback's detail.
+  using MessageBuffer = std::array<char, kFailureDetailCapacity + 480>;
+  MessageBuffer message{};
   std::chrono::steady_clock::time_point clock_start;
   bool clock_running = false;
   double run_seconds = 0.0;
@@ -499,7 +501,7 @@ struct Integrator::Impl {
   [[nodiscard]] bool balance_rule_tripped() const {
     return options.diagnostics && max_abs_balance > kInaccurateBalanceFraction * tolerance_scale;
   }
-  void write_inaccurate_message(std::array<char, 1024>& out) const noexcept {
+  void write_inaccurate_message(MessageBuffer& out) const noexcept {
     std::snprintf(out.data(), out.size(),
                   "inaccurate: the energy balance error |E_k + W_k - E_0| reached %.6g at step %zu "
                   "(t = %.17g), more than %g x the energy scale %.6g of the run (the steps do not "
@@ -670,7 +672,7 @@ struct Integrator::Impl {
     if (options.diagnostics) {
       // Step k is computed; if its diagnostics fail, the run ends with it as the last row.
       Status bad = Status::kSuccess;
-      std::array<char, 200> detail;  // written only on failure (no per-step clearing)
+      std::array<char, kFailureDetailCapacity> detail;  // written only on failure
       detail[0] = '\0';
       try {
         energy_k = energy(k);
@@ -805,7 +807,7 @@ Solution Integrator::Impl::result(Solution s, std::size_t rows) const {
                  " x the energy scale " + format_number(tolerance_scale) + ")";
   }
   if (status == Status::kRunning && unresolved) {
-    std::array<char, 1024> inaccurate{};
+    MessageBuffer inaccurate{};
     write_inaccurate_message(inaccurate);
     s.message = std::string(inaccurate.data()) + "; ";
   }

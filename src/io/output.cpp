@@ -29,6 +29,7 @@
 namespace fracvi {
 
 std::shared_ptr<const Potential> make_potential(const ProblemSpec& spec) {
+  if (spec.potential_object) return spec.potential_object;  // Python callables
   if (spec.chain) {
     ChainOptions options = *spec.chain;
     options.dimension = spec.dim;

@@ -534,6 +534,14 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     p.potential = r.string(
         r.required("model", "potential", "U as a formula in x1..xd and t, or a [model.chain]"),
         "model.potential");
+    if (p.potential.starts_with(kPythonPotentialPrefix)) {
+      // What a run from Python with potential=<function> records (ProblemSpec::potential_object).
+      r.fail("model.potential",
+             "= \"" + p.potential +
+                 "\" names Python functions, which a problem file cannot call: give U as a "
+                 "formula in x1..xd and t, or read this problem from Python (fracvi.load and "
+                 "fracvi.Problem.from_dict import the functions again when they are importable)");
+    }
     check_expression(r, "model.potential", p.potential, names);
   }
 

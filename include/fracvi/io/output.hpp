@@ -16,8 +16,9 @@
 
 namespace fracvi {
 
-/// U of a validated spec: the built-in chain of [model.chain] (with the [method] threads) or the
-/// expression potential of model.potential.
+/// U of a validated spec: the caller's potential object (ProblemSpec::potential_object: Python
+/// callables), the built-in chain of [model.chain] (with the [method] threads) or the expression
+/// potential of model.potential.
 std::shared_ptr<const Potential> make_potential(const ProblemSpec& spec);
 /// The initial value problem of a validated spec: the potential (make_potential; the force enters
 /// as −f(t)·x), M, R, α, convention, initial data, grid.

@@ -30,6 +30,7 @@
 
 #include <Eigen/Core>
 #include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <span>
@@ -40,6 +41,7 @@
 
 #include "fracvi/model/chain_potential.hpp"
 #include "fracvi/model/model_matrix.hpp"
+#include "fracvi/model/potential.hpp"
 
 namespace fracvi {
 
@@ -63,6 +65,11 @@ struct ProblemSpec {
   double alpha = 0.5;                 ///< Lagrangian order; the damping order is 2α
   std::string convention = "caputo";  ///< "caputo" or "riemann-liouville"
   std::string potential = "0";        ///< U(x1..xd, t); "0" when `chain` is set
+  /// A potential object given by the caller instead of a formula (the Python module's callables,
+  /// fracvi.Problem(potential=<function>, gradient=..., hessian=...)): make_potential() returns
+  /// it, and `potential` holds its label, "python:<module>.<name>, ..." (kPythonPotentialPrefix),
+  /// which the writers record and a problem file cannot resolve (the reader says so).
+  std::shared_ptr<const Potential> potential_object;
   /// [model.chain]: the built-in FPUT chain (model/chain_potential.hpp) instead of `potential`;
   /// dimension = dim, threads = the [method] threads.
   std::optional<ChainOptions> chain;
@@ -136,6 +143,9 @@ struct ProblemSpec {
   // [reference]
   std::vector<std::string> reference;  ///< exact x(t), empty or d formulas in t
 };
+
+/// How a potential given as Python callables is labelled in `ProblemSpec::potential`.
+inline constexpr std::string_view kPythonPotentialPrefix = "python:";
 
 /// Step-DOFs (time.steps · model.dim) up to which method.mirror = "auto" runs the mirror check:
 /// such runs take well under a second (bench/RESULTS.md: 0.1–1 µs per step-DOF for the midpoint

@@ -31,6 +31,11 @@
 
 namespace fracvi {
 
+/// Room for the what() of a callback that threw (Stepper::failure_detail), e.g. a Python
+/// exception with its traceback (python/src/callables.cpp): fixed, so that a failing step does
+/// not allocate; longer texts are cut.
+inline constexpr std::size_t kFailureDetailCapacity = 4096;
+
 namespace internal {
 struct NewtonReport;  // fracvi/solve/midpoint_newton.hpp
 }  // namespace internal
@@ -111,7 +116,7 @@ class Stepper {
 
  private:
   std::array<char, 200> message_{};
-  std::array<char, 200> detail_{};
+  std::array<char, kFailureDetailCapacity> detail_{};
   int last_iterations_ = 0;
 };
 
