@@ -295,7 +295,7 @@ class Problem:
     damping_order = property(lambda self: 2.0 * self._spec.alpha, doc="2α")
     convention = property(lambda self: self._spec.convention)
     potential = property(lambda self: self._spec.potential, doc="U(x1..xd, t)")
-    force = property(lambda self: list(self._spec.force), doc="f(t): [] or d formulas")
+    force = property(lambda self: list(self._spec.force), doc="f(t) or g(x, v, t): [] or d formulas in t, x1..xd, v1..vd")
     lagrangian = property(lambda self: self._spec.lagrangian,
                           doc="a general L(t, x, y, xdot, ydot, dx, dy), or '' (mechanical model)")
     position = property(lambda self: self._spec.position,
