@@ -265,6 +265,21 @@ TEST(StateForce, VanDerPolDopri5FollowsItsTolerance) {
   EXPECT_LE(err, 1e-9);
 }
 
+// dopri5 books g's work by ½(g_k + g_{k+1})·Δx_k on the output grid: O(h²) whatever its
+// tolerance, so quartering the output step divides the balance error by about 16.
+TEST(StateForce, Dopri5BalanceIsSecondOrderInTheOutputStep) {
+  IntegratorOptions o = quiet();
+  o.abs_tolerance = o.rel_tolerance = 1e-12;
+  const Solution coarse = integrate(van_der_pol(80), *parse_method("dopri5"), o);
+  const Solution fine = integrate(van_der_pol(320), *parse_method("dopri5"), o);
+  ASSERT_TRUE(coarse.ok() && fine.ok()) << coarse.message << fine.message;
+  const double ratio = coarse.max_balance_error / fine.max_balance_error;
+  std::printf("[ balance ] dopri5 van der Pol: %.2e (N = 80), %.2e (N = 320), ratio %.1f\n",
+              coarse.max_balance_error, fine.max_balance_error, ratio);
+  EXPECT_GE(ratio, 16.0 / 1.5);
+  EXPECT_GE(fine.max_balance_error, test::round_off_floor(1.0));
+}
+
 // Duffing with nonlinear velocity feedback and fractional damping of order 2α = 0.6 (Caputo):
 //   x'' + 0.5 D^{0.6} x + x + x³ = −0.4 x² x' + 0.3 cos(t),   x(0) = 1, v(0) = 0, on [0, 2].
 InitialValueProblem fractional_duffing(std::size_t steps, double order) {
