@@ -448,7 +448,8 @@ class Problem:
                             "else None (a formula's derivatives are exact and internal)")
     hessian = property(lambda self: None if self._functions is None else self._functions[2],
                        doc="the Python function ∇²U(x, t), or None")
-    force = property(lambda self: list(self._spec.force), doc="f(t): [] or d formulas")
+    force = property(lambda self: list(self._spec.force),
+                     doc="f(t) or g(x, v, t): [] or d formulas in t, x1..xd, v1..vd")
     lagrangian = property(lambda self: self._spec.lagrangian,
                           doc="a general L(t, x, y, xdot, ydot, dx, dy), or '' (mechanical model)")
     position = property(lambda self: self._spec.position,

@@ -330,3 +330,44 @@ def test_checkpoint_every_is_fracvi_runs():
         fracvi.integrate(problem)
     with pytest.raises(TypeError, match="unexpected keyword argument 'checkpoint_every'"):
         fracvi.integrate(fracvi.Problem.from_toml(FRACTIONAL), checkpoint_every=100)
+
+
+# --- non-conservative forces g(x, v, t) (docs/theory/forces.md) ---------------------------------
+
+def van_der_pol(**fields):
+    return fracvi.Problem(name="vdp", dim=1, mass=1.0, alpha=0.5, potential="x1^2/2",
+                          force=["1.0*(1 - x1^2)*v1"], position=[2.0], velocity=[0.0], end=4.0,
+                          steps=400, **fields)
+
+
+def test_velocity_dependent_force_passes_through():
+    p = van_der_pol()
+    assert p.force == ["1.0*(1 - x1^2)*v1"]
+    sol = fracvi.integrate(p, scheme="fvi-midpoint", error_estimate="none")
+    assert sol.ok, sol.message
+    # The force pumps energy in and takes it out (|W| of order one) and the balance, with g's
+    # work booked, is exact to round-off for the quadratic U (N eps (max|E| + max|W|)).
+    scale = np.abs(sol.energy).max() + np.abs(sol.dissipated).max()
+    assert np.abs(sol.dissipated).max() > 0.1
+    assert sol.max_balance_error <= len(sol.t) * np.finfo(float).eps * scale
+    # Against the same oscillator without the force: a different trajectory.
+    free = fracvi.integrate(fracvi.Problem(name="free", dim=1, mass=1.0, alpha=0.5,
+                                           potential="x1^2/2",
+                                           position=[2.0], velocity=[0.0], end=4.0, steps=400),
+                            scheme="fvi-midpoint", error_estimate="none")
+    assert abs(sol.x[-1, 0] - free.x[-1, 0]) > 0.1
+
+
+def test_state_force_refused_by_schemes_without_it():
+    with pytest.raises(ValueError, match=r'conformal-strang.*g\(x, v, t\)'):
+        fracvi.integrate(van_der_pol(), scheme="conformal-strang")
+
+
+def test_nan_force_is_a_status_with_the_trajectory():
+    p = fracvi.Problem(name="nan", dim=1, mass=1.0, alpha=0.5, potential="x1^2/2",
+                       force=["sqrt(x1 - 1)*v1"], position=[2.0], velocity=[0.0], end=4.0,
+                       steps=400)
+    sol = fracvi.integrate(p, error_estimate="none")
+    assert sol.status == "non-finite" and not sol.ok
+    assert 0 < len(sol.t) - 1 < 400 and np.isfinite(sol.x).all()
+    assert "non-finite" in sol.message

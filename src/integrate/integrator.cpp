@@ -423,8 +423,8 @@ struct Integrator::Impl {
     energy_floor = memory_energy;
     const bool time_dependent_u =
         problem.model.potential && problem.model.potential->is_time_dependent();
-    supplied_known =
-        std::isfinite(stepper->supplied_work()) || (!problem.model.forcing && !time_dependent_u);
+    supplied_known = std::isfinite(stepper->supplied_work()) ||
+                     (!problem.model.forcing && !problem.model.state_force && !time_dependent_u);
     // Riemann–Liouville with x(0) ≠ 0 and 0 < 2α < 1: the memory of the constant x(0) is a force
     // R x(0) t^{−2α}/Γ(1−2α) that acts like an external one and legitimately puts energy in (its
     // integrable singularity at t = 0 delivers a kick of order R x(0) h^{1−2α}), so the damping's

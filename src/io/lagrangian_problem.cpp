@@ -27,7 +27,9 @@ MechanicalModel mechanical_model(const ProblemSpec& spec) {
   m.alpha = spec.alpha;
   m.convention = *parse_convention(spec.convention);
   m.potential = make_potential(spec);  // the [model.chain] or the formula
-  m.forcing = make_expression_forcing(spec.force);
+  auto forces = make_expression_forces(spec.dim, spec.force);
+  m.forcing = std::move(forces.forcing);
+  m.state_force = std::move(forces.state_force);  // refused by MechanicalLagrangian
   return m;
 }
 

@@ -46,7 +46,10 @@ InitialValueProblem make_initial_value_problem(const ProblemSpec& spec) {
   p.model.alpha = spec.alpha;
   p.model.convention = *parse_convention(spec.convention);
   p.model.potential = make_potential(spec);
-  p.model.forcing = make_expression_forcing(spec.force);
+  // force formulas in t only: f(t) as always; mentioning x or v: g(x, v, t).
+  auto forces = make_expression_forces(spec.dim, spec.force);
+  p.model.forcing = std::move(forces.forcing);
+  p.model.state_force = std::move(forces.state_force);
   p.x0 = spec.position;
   p.v0 = spec.velocity;
   p.t0 = spec.start;

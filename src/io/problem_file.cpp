@@ -431,16 +431,27 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   // f(t) first: it needs only d, and a mismatch must be found before the d-sized work below (the
   // potential's d variable names, the matrices: 27 s for d = 10^7 when it came last).
   if (const auto* n = r.find("model", "force")) {
-    if (!n->is_array()) r.fail("model.force", "must be an array of d formulas in t");
+    if (!n->is_array()) {
+      r.fail("model.force", "must be an array of d formulas in t, x1..xd and v1..vd");
+    }
     const auto& a = *n->as_array();
     if (!a.empty() && static_cast<Eigen::Index>(a.size()) != p.dim) {  // [] means no force
       r.fail("model.force", "has " + std::to_string(a.size()) + " components, model.dim is " +
                                 std::to_string(p.dim));
     }
+    // Formulas in t alone are f(t); any mention of x or v makes the force g(x, v, t)
+    // (make_expression_forces). The names x1..xd, v1..vd are built only when a formula is not in t
+    // alone, so a large model with f(t) pays nothing for them.
+    std::vector<std::string> state_names;
     for (std::size_t i = 0; i < a.size(); ++i) {
       const std::string key = "model.force[" + std::to_string(i + 1) + "]";
       p.force.push_back(r.string(a[i], key));
-      check_expression(r, key, p.force.back(), {"t"});
+      try {
+        Expression::parse(p.force.back(), {"t"});
+      } catch (const ExpressionError&) {
+        if (state_names.empty()) state_names = ExpressionForce::variable_names(p.dim);
+        check_expression(r, key, p.force.back(), state_names);
+      }
     }
   }
   // A general Lagrangian replaces the mechanical fields (mass, damping, potential, force).

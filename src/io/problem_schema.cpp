@@ -126,7 +126,7 @@ std::vector<ProblemField> make_schema() {
       // A table: its keys are the [model.chain] rows below.
       {"model", "chain", "table [model.chain]", "—", "the built-in FPUT chain as U",
        FRACVI_BINDING(MechanicalModel, potential), nullptr},
-      {"model", "force", "array of d strings", "none", "f(t)",
+      {"model", "force", "array of d strings", "none", "f(t), or g(x, v, t) in x1..xd, v1..vd",
        FRACVI_BINDING(MechanicalModel, forcing),
        [](P p) { return mechanical(p) ? strings_json(p.force) : Json(); }},
       {"model.chain", "stiffness", "number", format_number(chain.stiffness),

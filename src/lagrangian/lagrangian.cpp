@@ -126,6 +126,12 @@ MechanicalLagrangian::MechanicalLagrangian(const MechanicalModel& model, double 
       forcing_(model.forcing),
       a_plus_b_(a + b) {
   validate(model);
+  if (model.state_force) {
+    throw ValidationError(
+        "model.force depends on x or v: a non-conservative force g(x, v, t) has no Lagrangian, "
+        "so the action sum and the boundary value problem (which are variational) do not take "
+        "it; integrate the initial value problem with a scheme that does (docs/theory/forces.md)");
+  }
   if (!(std::isfinite(a) && std::isfinite(b) && a < b)) {
     throw ValidationError("MechanicalLagrangian: the interval [a, b] = [" + std::to_string(a) +
                           ", " + std::to_string(b) + "] must be finite with a < b");

@@ -101,4 +101,88 @@ Forcing make_expression_forcing(const std::vector<std::string>& force) {
   };
 }
 
+std::vector<std::string> ExpressionForce::variable_names(Eigen::Index dimension) {
+  std::vector<std::string> names = ExpressionPotential::position_names(dimension);
+  for (Eigen::Index i = 1; i <= dimension; ++i) names.push_back("v" + std::to_string(i));
+  names.push_back("t");
+  return names;
+}
+
+ExpressionForce::ExpressionForce(Eigen::Index dimension, const std::vector<std::string>& force)
+    : dimension_(dimension), id_(next_id()) {
+  if (static_cast<Eigen::Index>(force.size()) != dimension) {
+    throw std::invalid_argument("force has " + std::to_string(force.size()) +
+                                " components, the model's dimension is " +
+                                std::to_string(dimension));
+  }
+  // Gradients with respect to x1..xd, v1..vd (not t): row i of ∂g/∂x and ∂g/∂v.
+  const std::vector<std::size_t> wrt = position_indices(2 * dimension);
+  for (const Expression& e : parse_expressions(force, variable_names(dimension)))
+    components_.emplace_back(e, wrt);
+  // The constructing thread's workspace now, so that the step loop (usually on this thread) does
+  // not allocate it on its first evaluation.
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(dimension);
+  scratch(zero, zero, 0.0);
+}
+
+ExpressionForce::Scratch& ExpressionForce::scratch(const Eigen::Ref<const Eigen::VectorXd>& x,
+                                                   const Eigen::Ref<const Eigen::VectorXd>& v,
+                                                   double t) const {
+  thread_local std::unordered_map<std::uint64_t, Scratch> per_object;
+  auto [it, inserted] = per_object.try_emplace(id_);
+  Scratch& s = it->second;
+  const auto d = static_cast<std::size_t>(dimension_);
+  if (inserted) {
+    s.args.resize(2 * d + 1);
+    s.gradient.resize(2 * d);
+    for (const CompiledDerivatives& c : components_) s.workspaces.push_back(c.make_workspace());
+  }
+  for (std::size_t i = 0; i < d; ++i) {
+    s.args[i] = x[static_cast<Eigen::Index>(i)];
+    s.args[d + i] = v[static_cast<Eigen::Index>(i)];
+  }
+  s.args.back() = t;
+  return s;
+}
+
+void ExpressionForce::value(const Eigen::Ref<const Eigen::VectorXd>& x,
+                            const Eigen::Ref<const Eigen::VectorXd>& v, double t,
+                            Eigen::Ref<Eigen::VectorXd> out) const {
+  Scratch& s = scratch(x, v, t);
+  for (std::size_t i = 0; i < components_.size(); ++i)
+    out[static_cast<Eigen::Index>(i)] = components_[i].evaluate(s.args, s.workspaces[i]);
+}
+
+void ExpressionForce::jacobians(const Eigen::Ref<const Eigen::VectorXd>& x,
+                                const Eigen::Ref<const Eigen::VectorXd>& v, double t,
+                                Eigen::Ref<Eigen::VectorXd> out, Eigen::Ref<Eigen::MatrixXd> dx,
+                                Eigen::Ref<Eigen::MatrixXd> dv) const {
+  Scratch& s = scratch(x, v, t);
+  for (std::size_t i = 0; i < components_.size(); ++i) {
+    const auto row = static_cast<Eigen::Index>(i);
+    out[row] = components_[i].evaluate(s.args, s.gradient, s.workspaces[i]);
+    for (Eigen::Index j = 0; j < dimension_; ++j) {
+      dx(row, j) = s.gradient[static_cast<std::size_t>(j)];
+      dv(row, j) = s.gradient[static_cast<std::size_t>(dimension_ + j)];
+    }
+  }
+}
+
+ExpressionForces make_expression_forces(Eigen::Index dimension,
+                                        const std::vector<std::string>& force) {
+  if (force.empty()) return {};
+  // Formulas in t alone (they parse with t as the only variable) keep the f(t) path to the bit.
+  bool in_t_alone = true;
+  for (const std::string& text : force) {
+    try {
+      Expression::parse(text, {"t"});
+    } catch (const ExpressionError&) {
+      in_t_alone = false;
+      break;
+    }
+  }
+  if (in_t_alone) return {make_expression_forcing(force), nullptr};
+  return {{}, std::make_shared<const ExpressionForce>(dimension, force)};
+}
+
 }  // namespace fracvi

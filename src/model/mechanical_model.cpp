@@ -147,6 +147,10 @@ void validate(const MechanicalModel& model) {
       model.convention != Convention::kRiemannLiouville) {
     fail("model.convention has an unknown value");
   }
+  if (model.state_force && model.state_force->dimension() != d) {
+    fail("model.state_force has dimension " + std::to_string(model.state_force->dimension()) +
+         ", must be " + std::to_string(d) + " (the size of model.mass)");
+  }
   if (model.potential && model.potential->dimension() != d) {
     fail("model.potential has dimension " + std::to_string(model.potential->dimension()) +
          ", must be " + std::to_string(d) + " (the size of model.mass)");

@@ -212,6 +212,9 @@ const SchemeInfo kConformalStrang{
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
     .forcing_moments = false,
     .checkpoints = true,
+    .no_state_force =
+        "its splitting solves the damping flow exactly and has no sub-step for a "
+        "velocity-dependent force",
     .applies_to = "2alpha = 1 (or R = 0)",
     .stability_rule = "Verlet's h omega_max < 2 (with damping: spectral radius of the step <= 1)",
     .declared_order = [](const MechanicalModel&) { return 2; },

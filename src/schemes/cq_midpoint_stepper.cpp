@@ -36,7 +36,7 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
       force_matrix_(damping_.scaled(std::pow(h_, -damping_sum_.order))),
       mass_solver_(mass_, force_matrix_, options.linear_solver),
       newton_(mass_, h_, problem.model.potential.get(), options.newton, problem.t0,
-              options.linear_solver) {
+              options.linear_solver, problem.model.state_force.get()) {
   const double order = damping_sum_.order;
   const bool caputo = problem.model.convention == Convention::kCaputo;
   if (memory_start == MemoryStart::kPaperStart) {
@@ -77,6 +77,7 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
         &force_next_, &w_, &w_next_, &sum_, &x_tilde_, &f_mid_, &rhs_, &mid_, &grad_, &dx_}) {
     vec->setZero(d_);
   }
+  g_mid_.setZero(d_);
 
   // The state at k = 0: x_0, v_0, p_0 = M v_0 and the damping force F_0.
   x_cur_ = problem.x0;
@@ -151,6 +152,10 @@ Status CqMidpointStepper::advance() {
     dx_ = h_ * problem_.v0;
     mid_ = xk + 0.5 * dx_;
     newton_.effective_gradient(mid_, t_half, f_ptr, grad_);
+    if (newton_.has_state_force()) {
+      newton_.state_force(mid_, dx_, t_half, g_mid_);
+      grad_ -= g_mid_;
+    }
     mass_.multiply(dx_, p_minus_);
     p_minus_ *= 1.0 / h_;
     p_minus_ -= (0.5 * h_) * grad_;
@@ -207,6 +212,14 @@ Status CqMidpointStepper::advance() {
       const double fw = f_mid_.dot(dx_);
       work_ -= fw;
       supplied_ += fw;
+    }
+    // The discrete work of g: f⁻_k + f⁺_k = h g(x̄_k, Δ_k/h, t_{k+½}) against Δ_k/h (the midpoint
+    // rule of the Lagrange–d'Alembert principle; docs/theory/forces.md §2), exact in the balance
+    // for quadratic U like that of f.
+    if (newton_.has_state_force()) {
+      const double gw = newton_.state_force_work(xk, dx_, t_half);
+      work_ -= gw;
+      supplied_ += gw;
     }
     if (u_time_dependent_) {
       mid_ = xk + 0.5 * dx_;

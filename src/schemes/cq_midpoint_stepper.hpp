@@ -107,7 +107,8 @@ class CqMidpointStepper final : public Stepper {
   std::size_t k_ = 0;
   Eigen::VectorXd x_cur_, x_next_, v_cur_, v_next_, x_first_;
   Eigen::VectorXd p_, p_plus_, p_minus_, force_, force_next_, w_, w_next_, sum_, x_tilde_, f_mid_,
-      rhs_, mid_, grad_, dx_;
+      rhs_, mid_, grad_, dx_,
+      g_mid_;  // g(x̄_k, Δ_k/h, t_{k+½}), the non-conservative force of the cell
   double fv_ = 0.0, fw_ = 0.0, work_ = 0.0, supplied_ = 0.0;
 };
 

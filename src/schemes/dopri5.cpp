@@ -6,6 +6,8 @@
 // order Hermite-type interpolation of the stages), so the error follows the tolerances, not h.
 // Energy account: the damping work ∫ v·Rv dt by R(x_{k+1} − x_k)·½(v_k + v_{k+1}) on the grid and
 // ExternalWork: O(h²) on the grid whatever the tolerance (a consistency check).
+// A non-conservative force g(x, v, t) is part of the right-hand side (explicit evaluation); its
+// work ∫ g·v dt is booked like the damping's, by ½(g_k + g_{k+1})·(x_{k+1} − x_k).
 #include <boost/numeric/odeint.hpp>
 #include <cmath>
 #include <limits>
@@ -43,9 +45,12 @@ class Dopri5Stepper final : public Stepper {
         mass_solver_(mass_, damping_, options.linear_solver),
         dense_(odeint::make_dense_output(options.abs_tolerance, options.rel_tolerance, Dopri5())),
         external_(problem) {
-    for (Eigen::VectorXd* vec : {&x_, &v_, &p_, &force_, &tmp_, &dx_, &rdx_}) vec->setZero(d_);
+    for (Eigen::VectorXd* vec : {&x_, &v_, &p_, &force_, &tmp_, &dx_, &rdx_, &g_, &g_next_})
+      vec->setZero(d_);
     x_ = problem.x0;
     v_ = problem.v0;
+    if (problem.model.state_force && diagnostics_)
+      problem.model.state_force->value(x_, v_, problem.t0, g_);
     mass_.multiply(v_, p_);
     z_.assign(static_cast<std::size_t>(2 * d_), 0.0);
     pack(z_);
@@ -79,6 +84,10 @@ class Dopri5Stepper final : public Stepper {
     }
     if (problem_.model.forcing) {
       problem_.model.forcing(t, tmp_);
+      force_ -= tmp_;
+    }
+    if (problem_.model.state_force) {
+      problem_.model.state_force->value(x, v, t, tmp_);
       force_ -= tmp_;
     }
     force_ = -force_;
@@ -120,7 +129,12 @@ class Dopri5Stepper final : public Stepper {
         work_ += 0.5 * rdx_.dot(v_ + v_next);
       }
       tmp_ = x_next;
-      const double supplied = external_.step(k, x_, tmp_);
+      double supplied = external_.step(k, x_, tmp_);
+      if (problem_.model.state_force) {
+        problem_.model.state_force->value(x_next, v_next, t_next, g_next_);
+        supplied += 0.5 * (g_ + g_next_).dot(dx_);
+        g_.swap(g_next_);
+      }
       work_ -= supplied;
       supplied_ += supplied;
     }
@@ -143,6 +157,7 @@ class Dopri5Stepper final : public Stepper {
   State z_;
   std::size_t k_ = 0;
   Eigen::VectorXd x_, v_, p_, force_, tmp_, dx_, rdx_;
+  Eigen::VectorXd g_, g_next_;  // g(x_k, v_k, t_k) and at k + 1 (energy account)
   double work_ = 0.0, supplied_ = 0.0;
 };
 
@@ -164,6 +179,7 @@ const SchemeInfo kDopri5{
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
     .forcing_moments = false,
     .adaptive = true,
+    .no_state_force = "",
     .applies_to = "2alpha = 1 (or R = 0)",
     .stability_rule = "adaptive: the step-size controller keeps it stable (every output h)",
     .declared_order = [](const MechanicalModel&) { return 5; },

@@ -300,6 +300,7 @@ const SchemeInfo kEulerExplicit{
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
     .forcing_moments = false,
     .checkpoints = true,
+    .no_state_force = "this baseline takes f(t) only",
     .applies_to = "every model (no stable h without damping)",
     .stability_rule =
         "all characteristic roots inside the unit disc, computed for the problem's M, R and "
@@ -327,6 +328,7 @@ const SchemeInfo kEulerImplicit{
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
     .forcing_moments = false,
     .checkpoints = true,
+    .no_state_force = "this baseline takes f(t) only",
     .applies_to = "every model",
     .stability_rule = "stable for every h (implicit damping and stiffness)",
     .declared_order = [](const MechanicalModel&) { return 1; },

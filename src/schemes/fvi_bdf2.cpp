@@ -24,6 +24,7 @@ const SchemeInfo kFviBdf2{
     .forcing_moments = true,  // method.load = "moments": the cell average of f
     .checkpoints = true,
     .explicit_euler_start = true,  // CqMidpointStepper's negative control
+    .no_state_force = "",
     .applies_to = "every model",
     .stability_rule = "lambda_max(M^-1 R) h^(2-2alpha) 4^(2alpha-1) < 1",
     .declared_order = [](const MechanicalModel&) { return 2; },

@@ -23,6 +23,7 @@ const SchemeInfo kFviGl{
     .forcing_moments = true,  // method.load = "moments": the cell average of f
     .checkpoints = true,
     .explicit_euler_start = true,  // CqMidpointStepper's negative control
+    .no_state_force = "",
     .applies_to = "every model",
     .stability_rule = "lambda_max(M^-1 R) (h/2)^(2-2alpha) < 1",
     // The GL sum (for α = 1/2 the backward difference of Lemma 5.3) is first order; without

@@ -22,6 +22,11 @@
 // ∇²U: the current interval's damping acts on the unknowns (implicit), and for s = 2 the potential
 // does not enter it at all (a linear solve per step for any U, as for Störmer–Verlet).
 //
+// A non-conservative force g(x, v, t) (docs/theory/forces.md §5) enters like f, by the Lobatto
+// quadrature of the virtual work: h b_k g(X_{n,k}, V_{n,k}, t_{n,k}) in F_{n,k}, with V the stage
+// derivative of the interpolant; Newton's matrix gains h b_k (δ_{km} ∂g/∂x + (D_{km}/h) ∂g/∂v)
+// (not symmetric, and coupling every stage to every unknown through V: dense LU).
+//
 // Stability (§8): the conservative part is the Lobatto IIIA–IIIB method, conditionally stable
 // (λ_max(M⁻¹∇²U) h² < 4, 8, 30), and for 0 < 2α < 1 the spring-like part of the damping adds a
 // bound on λ_max(M⁻¹R) h^{2−2α} (measured table below). 1 ≤ 2α < 2: no damping bound found.
@@ -171,10 +176,16 @@ class StageMatrix {
   StageMatrix(const LobattoNodes& nodes, const Eigen::MatrixXd& current, double h, double beta,
               const ModelMatrix& mass, const ModelMatrix& damping, bool damped,
               const Potential* potential, LinearSolver requested, int first_equation = 0,
-              int first_unknown = 1)
+              int first_unknown = 1, const StateForce* state_force = nullptr,
+              double velocity_sign = 1.0)
       : s_(nodes.s),
         d_(mass.rows()),
         potential_(potential),
+        state_force_(state_force),
+        velocity_sign_(velocity_sign),
+        h_(h),
+        b_(nodes.b),
+        D_(nodes.D),
         internal_hessians_(potential != nullptr && nodes.s > 2),
         first_equation_(first_equation),
         first_unknown_(first_unknown) {
@@ -195,6 +206,23 @@ class StageMatrix {
         (potential == nullptr || !internal_hessians_ || potential->has_sparse_hessian());
     sparse_ = requested == LinearSolver::kSparse || requested == LinearSolver::kBanded ||
               (requested == LinearSolver::kAuto && structured && n > kDenseUpTo);
+    if (state_force != nullptr) {
+      // ∂g/∂v couples every stage to every unknown and is not symmetric: dense LU only.
+      if (requested == LinearSolver::kSparse || requested == LinearSolver::kBanded) {
+        throw ValidationError(
+            "method.linear_solver = \"" +
+            std::string(requested == LinearSolver::kBanded ? "banded" : "sparse") +
+            "\" is not available for the stage system of a model with a force g(x, v, t) "
+            "(model.force "
+            "in x or v): its Jacobian couples all stages; use linear_solver = \"dense\" or "
+            "\"auto\"");
+      }
+      sparse_ = false;
+      force_value_.setZero(d_);
+      force_velocity_.setZero(d_);
+      force_dx_.setZero(d_, d_);
+      force_dv_.setZero(d_, d_);
+    }
     if (!sparse_) {
       if (n > kMaxDenseDimension) {
         throw ValidationError(
@@ -259,14 +287,29 @@ class StageMatrix {
   [[nodiscard]] bool is_sparse() const { return sparse_; }
 
   /// Forms J = constant part − h b_i ∇²U(X_i, t_i) (internal stages i = 2 … s − 1, columns of
-  /// `stages`) and factors it. False when singular.
-  bool factor(const Eigen::MatrixXd& stages, const Eigen::VectorXd& times) {
+  /// `stages`) + the state force's h b_e (δ_{eu} ∂g/∂x + σ (D_{eu}/h) ∂g/∂v) at the stage
+  /// velocities `velocities` (σ the velocity sign: −1 for the mirror's reversed orientation) and
+  /// factors it. False when singular.
+  bool factor(const Eigen::MatrixXd& stages, const Eigen::VectorXd& times,
+              const Eigen::MatrixXd& velocities) {
     if (!sparse_) {
       jacobian_ = constant_;
       for (int i = 1; internal_hessians_ && i + 1 < s_; ++i) {
         potential_->hessian(stages.col(i), times(i), hessian_);
         jacobian_.block((i - first_equation_) * d_, (i - first_unknown_) * d_, d_, d_) +=
             hessian_coeff_[i - 1] * hessian_;
+      }
+      for (int r = 0; state_force_ != nullptr && r + 1 < s_; ++r) {
+        const int e = r + first_equation_;
+        force_velocity_ = velocity_sign_ * velocities.col(e);
+        state_force_->jacobians(stages.col(e), force_velocity_, times(e), force_value_, force_dx_,
+                                force_dv_);
+        for (int c = 0; c + 1 < s_; ++c) {
+          const int u = c + first_unknown_;
+          auto block = jacobian_.block(r * d_, c * d_, d_, d_);
+          if (e == u) block += (h_ * b_(e)) * force_dx_;
+          block += (b_(e) * velocity_sign_ * D_(e, u)) * force_dv_;
+        }
       }
       lu_.compute(jacobian_);
       // PartialPivLU does not report singularity: a zero pivot shows as a non-finite solve.
@@ -317,6 +360,10 @@ class StageMatrix {
   int s_;
   Eigen::Index d_;
   const Potential* potential_;
+  const StateForce* state_force_;
+  double velocity_sign_, h_;
+  Eigen::VectorXd b_, force_value_, force_velocity_;
+  Eigen::MatrixXd D_, force_dx_, force_dv_;
   bool internal_hessians_;
   int first_equation_, first_unknown_;
   bool sparse_ = false;
@@ -341,15 +388,16 @@ class StageMatrix {
 // M V B D, ∇U − f, R G̃ (h^{−β} scaled), the interval force F and P's loads L.
 struct Blocks {
   Eigen::MatrixXd delta, stages, tilde, memory, velocities, kinetic, forces, damping_forces, force,
-      loads;
-  Eigen::VectorXd times, scratch;
+      loads, state_forces;  // state_forces: g(X_a, σV_a, τ_a)
+  Eigen::VectorXd times, scratch, state_velocity;
   void resize(Eigen::Index d, int s) {
     for (Eigen::MatrixXd* m : {&delta, &stages, &tilde, &memory, &velocities, &kinetic, &forces,
-                               &damping_forces, &force, &loads}) {
+                               &damping_forces, &force, &loads, &state_forces}) {
       m->setZero(d, s);
     }
     times.setZero(s);
     scratch.setZero(d);
+    state_velocity.setZero(d);
   }
 };
 
@@ -372,10 +420,12 @@ class LobattoStepper final : public Stepper {
         w0_(RungeKuttaCq{stages, beta_, 0}.weight(0)),
         mass_(problem.model.mass.symmetric_part()),
         damping_(problem.model.damping.symmetric_part()),
+        state_force_(problem.model.state_force.get()),
         mass_solver_(mass_, damping_, options.linear_solver),
         stage_matrix_(nodes_, w0_, h_, beta_, mass_, damping_, damped_, potential_,
-                      options.linear_solver),
-        linear_(s_ == 2 || potential_ == nullptr || potential_->has_constant_hessian()),
+                      options.linear_solver, 0, 1, state_force_),
+        linear_(state_force_ == nullptr &&
+                (s_ == 2 || potential_ == nullptr || potential_->has_constant_hessian())),
         h_power_(std::pow(h_, -beta_)) {
     const bool caputo = problem.model.convention == Convention::kCaputo;
     split_ = damped_ && beta_ > 0.0;
@@ -402,6 +452,7 @@ class LobattoStepper final : public Stepper {
     solve_scratch_.setZero((s_ - 1) * d_);
     factored_stages_.setZero(d_, s_);
     factored_times_.setZero(s_);
+    factored_velocities_.setZero(d_, s_);
     if (damped_) {
       damping_.multiply(problem.x0, r_x0_);
       damping_.multiply(problem.v0, r_v0_);
@@ -420,7 +471,7 @@ class LobattoStepper final : public Stepper {
     if (linear_) {
       cur_.stages.colwise() = problem.x0;
       for (int a = 0; a < s_; ++a) cur_.times(a) = problem.t0 + nodes_.c(a) * h_;
-      if (!stage_matrix_.factor(cur_.stages, cur_.times)) {
+      if (!stage_matrix_.factor(cur_.stages, cur_.times, cur_.velocities)) {
         throw ValidationError("the stage system of " + std::string(name()) +
                               " is singular for this problem (h = " + format_number(h_) + ")");
       }
@@ -461,8 +512,10 @@ class LobattoStepper final : public Stepper {
       archive.flag("lobatto.factored", factored_);
       archive.dense("lobatto.factored_stages", factored_stages_);
       archive.dense("lobatto.factored_times", factored_times_);
+      if (state_force_ != nullptr)
+        archive.dense("lobatto.factored_velocities", factored_velocities_);
       if (archive.loading() && factored_ &&
-          !stage_matrix_.factor(factored_stages_, factored_times_)) {
+          !stage_matrix_.factor(factored_stages_, factored_times_, factored_velocities_)) {
         throw CheckpointError(
             "checkpoint record 'lobatto.factored_stages': the stage matrix "
             "cannot be factored there (corrupt)");
@@ -483,7 +536,10 @@ class LobattoStepper final : public Stepper {
   // Columns [0, last) of F (b.force) from b.delta, b.stages (= known node + b.delta), b.memory,
   // b.loads and b.forces, with `current` the weight of the interval's own stages (W_0 for the
   // x-equation, J W_0 J for the mirror y-equation).
-  void interval_force(Blocks& b, const Eigen::MatrixXd& current, int last) const;
+  // The state force g enters with the velocity σV (σ = velocity_sign: −1 for the mirror's
+  // reversed orientation, where the physical velocity is −ẏ).
+  void interval_force(Blocks& b, const Eigen::MatrixXd& current, int last,
+                      double velocity_sign = 1.0) const;
   [[nodiscard]] double mirror_error(const RowMatrixXd& x,
                                     std::span<const std::size_t> steps) const override;
 
@@ -498,14 +554,16 @@ class LobattoStepper final : public Stepper {
   const Potential* potential_;
   Eigen::MatrixXd w0_;
   ModelMatrix mass_, damping_;
+  const StateForce* state_force_;
   MassSolver mass_solver_;
   StageMatrix stage_matrix_;
   bool linear_;
   bool factored_ =
       false;  // nonlinear U: the stage matrix holds a factorisation (simplified Newton) …
-  Eigen::MatrixXd factored_stages_;  // … formed at these stages (d × s)
-  Eigen::VectorXd factored_times_;   // … and stage times (for a checkpoint to form it again)
-  double h_power_;                   // h^{−β}
+  Eigen::MatrixXd factored_stages_;      // … formed at these stages (d × s)
+  Eigen::VectorXd factored_times_;       // … and stage times (for a checkpoint to form it again)
+  Eigen::MatrixXd factored_velocities_;  // … and stage velocities (with a state force g)
+  double h_power_;                       // h^{−β}
   bool split_ = false;
   std::unique_ptr<PowerMoments> velocity_load_, position_load_;
   std::unique_ptr<ForcingMoments> forcing_load_;
@@ -543,7 +601,8 @@ void LobattoStepper::subtract_polynomial(Blocks& b) const {
   }
 }
 
-void LobattoStepper::interval_force(Blocks& b, const Eigen::MatrixXd& current, int last) const {
+void LobattoStepper::interval_force(Blocks& b, const Eigen::MatrixXd& current, int last,
+                                    double velocity_sign) const {
   // V = Δ Dᵀ / h (Σ_k D_{ak} = 0, so increments suffice: no cancellation of the node value),
   // then Σ_a b_a D_{ak} M V_a = (M V B D)_k.
   b.velocities.noalias() = b.delta * nodes_.D.transpose();
@@ -554,6 +613,12 @@ void LobattoStepper::interval_force(Blocks& b, const Eigen::MatrixXd& current, i
     auto f = b.force.col(k);
     f.noalias() = b.kinetic * nodes_.BD.col(k);
     f -= (h_ * nodes_.b(k)) * b.forces.col(k);
+    if (state_force_ != nullptr) {
+      // The Lobatto quadrature of ∫ g·δx dt: + h b_k g(X_k, σV_k, τ_k) (docs/theory/forces.md §5).
+      b.state_velocity = velocity_sign * b.velocities.col(k);
+      state_force_->value(b.stages.col(k), b.state_velocity, b.times(k), b.state_forces.col(k));
+      f += (h_ * nodes_.b(k)) * b.state_forces.col(k);
+    }
     if (damped_) {
       // R G̃_k = R h^{−β} (Σ_l current_{kl} X̃_l + memory_k).
       b.scratch.noalias() = b.tilde * current.row(k).transpose();
@@ -616,7 +681,8 @@ Status LobattoStepper::advance() {
     if (!linear_ && refactor) {
       factored_stages_ = cur_.stages;
       factored_times_ = cur_.times;
-      factored_ = stage_matrix_.factor(cur_.stages, cur_.times);
+      factored_velocities_ = cur_.velocities;
+      factored_ = stage_matrix_.factor(cur_.stages, cur_.times, cur_.velocities);
       if (!factored_) {
         return fail(Status::kNewtonFailure,
                     "the stage system's Newton matrix could not be factored (singular)");
@@ -679,6 +745,9 @@ Status LobattoStepper::advance() {
         supply(h_ * nodes_.b(a) * cur_.scratch.dot(cur_.velocities.col(a)));
       }
       if (forcing_moments_) supply(forcing_slope_.col(a).dot(cur_.delta.col(a)));
+      // g's work by the same quadrature, h b_a g_a·V_a.
+      if (state_force_ != nullptr)
+        supply(h_ * nodes_.b(a) * cur_.state_forces.col(a).dot(cur_.velocities.col(a)));
       if (damped_ && velocity_load_) work_ += work_v_(a) * r_v0_.dot(cur_.delta.col(a));
       if (damped_ && position_load_) work_ += work_x_(a) * r_x0_.dot(cur_.delta.col(a));
       if (u_time_dependent_) {
@@ -717,8 +786,10 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
   const std::size_t n_steps = problem_.steps;
   const Eigen::MatrixXd reversal = Eigen::MatrixXd::Identity(s_, s_).rowwise().reverse();
   const Eigen::MatrixXd current = reversal * w0_ * reversal;
+  // The y-curve runs backwards in time: g sees the physical velocity −ẏ (σ = −1).
   StageMatrix matrix(nodes_, current, h_, beta_, mass_, damping_, damped_, potential_,
-                     options_.linear_solver, /*first_equation=*/1, /*first_unknown=*/0);
+                     options_.linear_solver, /*first_equation=*/1, /*first_unknown=*/0,
+                     state_force_, /*velocity_sign=*/-1.0);
   std::unique_ptr<BlockHistory> history;
   if (damped_ && beta_ > 0.0) {
     history = make_block_history(options_.history, RungeKuttaCq{s_, beta_, 1}, d_, n_steps,
@@ -744,7 +815,7 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
   if (linear) {
     y.stages.colwise() = node;
     y.times.setConstant(problem_.t_end);
-    if (!matrix.factor(y.stages, y.times)) return kNaN;
+    if (!matrix.factor(y.stages, y.times, y.velocities)) return kNaN;
   }
   // Stored rows: x at steps[i] mirrors y at N − steps[i]; walk them as y_m is produced.
   const std::size_t rows =
@@ -795,11 +866,11 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
     y.stages.colwise() += node;
     stage_forces(y, 0, s_);
     for (int iteration = 1;; ++iteration) {
-      interval_force(y, current, s_);
+      interval_force(y, current, s_, -1.0);
       for (int r = 0; r + 1 < s_; ++r) residual.segment(r * d_, d_) = -y.force.col(r + 1);
       residual.tail(d_) += q;
       if (!residual.allFinite()) return kNaN;
-      if (!linear && !matrix.factor(y.stages, y.times)) return kNaN;
+      if (!linear && !matrix.factor(y.stages, y.times, y.velocities)) return kNaN;
       matrix.solve_in_place(residual, scratch);
       double correction = 0.0;
       for (int c = 0; c + 1 < s_; ++c) {
@@ -817,7 +888,7 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
       if (correction <= tolerance) break;
       if (iteration >= options_.newton.max_iterations) return kNaN;
     }
-    interval_force(y, current, s_);
+    interval_force(y, current, s_, -1.0);
     if (history) {
       subtract_polynomial(y);
       reversed = y.tilde.rowwise().reverse();
@@ -1001,6 +1072,7 @@ SchemeInfo lobatto_row(std::string_view name, std::string_view summary, std::str
       .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
       .forcing_moments = true,
       .checkpoints = true,
+      .no_state_force = "",
       .applies_to = "0 <= 2alpha < 2",
       .stability_rule = stability_rule,
       .declared_order = [](const MechanicalModel& model) { return lobatto_order(S, model); },

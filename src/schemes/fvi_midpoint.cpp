@@ -75,7 +75,7 @@ class TrapezoidalMidpointStepper final : public Stepper {
             damped_ ? linear_combination(mass_, 0.5 * h_ * h_ * current_weight_, force_matrix_)
                     : mass_),
         newton_(newton_matrix_, h_, problem.model.potential.get(), options.newton, problem.t0,
-                options.linear_solver) {
+                options.linear_solver, problem.model.state_force.get()) {
     // x = P + x̃ for β > 0 (D^0 is the identity: nothing to split); P's force as exact cell
     // averages (TaylorCellForce, trapezoid_memory.hpp).
     split_ = polynomial_force_.split();
@@ -233,6 +233,12 @@ Status TrapezoidalMidpointStepper::advance() {
       work_ -= fw;
       supplied_ += fw;
     }
+    // The discrete work of g (docs/theory/forces.md §2), as in CqMidpointStepper.
+    if (newton_.has_state_force()) {
+      const double gw = newton_.state_force_work(xk, dx_, t_half);
+      work_ -= gw;
+      supplied_ += gw;
+    }
     if (u_time_dependent_) {
       mid_ = xk + 0.5 * dx_;
       const double du = potential_value(mid_, problem_.time(static_cast<double>(k + 1))) -
@@ -319,6 +325,7 @@ const SchemeInfo kFviMidpoint{
     .momentum_quadrature = CqScheme::kTrapezoidal,
     .forcing_moments = true,  // method.load = "moments": the cell average of f
     .checkpoints = true,
+    .no_state_force = "",
     .applies_to = "0 <= 2alpha < 2",
     .stability_rule =
         "stable for every h (implicit damping; the Tustin image of the continuous "

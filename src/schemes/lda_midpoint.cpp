@@ -202,6 +202,8 @@ const SchemeInfo kLdaMidpoint{
     .momentum_quadrature = CqScheme::kTrapezoidal,
     .forcing_moments = true,  // method.load = "moments": the cell average of f
     .checkpoints = true,
+    .no_state_force =
+        "this baseline reproduces the published Lagrange-d'Alembert scheme with f(t) only",
     .applies_to = "0 <= 2alpha < 2",
     .stability_rule =
         "stable for every h (implicit damping; the Tustin image of the continuous "

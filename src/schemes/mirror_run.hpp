@@ -58,13 +58,13 @@ double backward_mirror_run(const InitialValueProblem& problem, const IntegratorO
     const std::size_t n = problem.steps;
     if (n < 2) return 0.0;
     MidpointNewton solver(newton_matrix, h, problem.model.potential.get(), options.newton,
-                          problem.t0, options.linear_solver);
+                          problem.t0, options.linear_solver, problem.model.state_force.get());
     const Eigen::Index d = problem.model.dimension();
     const bool has_forcing = static_cast<bool>(problem.model.forcing);
     MidpointForce midpoint_force(problem, options.load);
     auto half_time = [&](std::size_t i) { return problem.t0 + (static_cast<double>(i) + 0.5) * h; };
     Eigen::VectorXd y_next = problem.x0, y_k = x1, y_prev(d), known(d), g(d), f_tau(d), f_tau2(d),
-                    c(d), ym(d), step(d);
+                    c(d), ym(d), step(d), g_state(d);
     Eigen::VectorXd delta = y_k - y_next;
     damping.start(y_next, y_k);
     std::size_t next_row = 0;
@@ -85,6 +85,13 @@ double backward_mirror_run(const InitialValueProblem& problem, const IntegratorO
       }
       ym = 0.5 * (y_next + y_k);
       solver.effective_gradient(ym, tau_known, f_known, g);
+      // A non-conservative force g(x, v, t) at the physical state of the mirrored cell: its
+      // increment x_{N−k} − x_{N−k−1} is delta = y_k − y_{k+1}, and solve() evaluates the new
+      // cell with the increment y_{k−1} − y_k = x_{N−k+1} − x_{N−k} (docs/theory/forces.md §4).
+      if (solver.has_state_force()) {
+        solver.state_force(ym, delta, tau_known, g_state);
+        g -= g_state;
+      }
       mass.multiply(delta, c);
       c -= (h * h) * known;
       c -= (0.5 * h * h) * g;

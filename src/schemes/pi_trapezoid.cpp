@@ -378,6 +378,7 @@ const SchemeInfo kPiTrapezoid{
     .fast_history = true,  // FFT-blocked sums (OnlineConvolution): O(log² N) per step
     .momentum_quadrature = CqScheme::kGrunwaldLetnikov,
     .forcing_moments = false,
+    .no_state_force = "this baseline's product-integration step treats only f(t)",
     .applies_to = "Caputo (Riemann-Liouville with initial data where the two coincide)",
     .stability_rule =
         "M + s A_(2-2alpha)(-1) R + (h^2/6) A_2(-1) K > 0 at the highest frequency (A < 0 for "

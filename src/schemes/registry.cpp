@@ -120,6 +120,16 @@ void check_applicable(const InitialValueProblem& problem, const Method& method,
     throw ValidationError("method.scheme = \"" + std::string(info.name) +
                           "\" does not apply to this problem: " + rule);
   }
+  if (problem.model.state_force && !info.no_state_force.empty()) {
+    std::string with;
+    for (const SchemeInfo* scheme : registered_schemes()) {
+      if (!scheme->no_state_force.empty()) continue;
+      with += (with.empty() ? "" : ", ") + std::string(scheme->name);
+    }
+    throw ValidationError("method.scheme = \"" + std::string(info.name) +
+                          "\" does not take a force g(x, v, t) (model.force mentions x or v): " +
+                          std::string(info.no_state_force) + " (schemes that do: " + with + ")");
+  }
   if (options.history == HistoryKind::kFast && !info.fast_history && !problem.model.is_undamped()) {
     throw ValidationError("method.history = \"fast\" is not available for method.scheme = \"" +
                           std::string(info.name) +

@@ -30,19 +30,39 @@ LinearSolver resolve(LinearSolver solver, const ModelMatrix& A, const Potential*
 }  // namespace
 
 MidpointNewton::MidpointNewton(ModelMatrix A, double h, const Potential* potential,
-                               const NewtonOptions& options, double t_hessian, LinearSolver solver)
+                               const NewtonOptions& options, double t_hessian, LinearSolver solver,
+                               const StateForce* state_force)
     : A_(std::move(A)),
       half_h2_(0.5 * h * h),
       quarter_h2_(0.25 * h * h),
+      h_(h),
       potential_(potential),
+      state_force_(state_force),
       options_(options),
-      linear_(potential == nullptr || potential->has_constant_hessian()),
+      linear_(state_force == nullptr &&
+              (potential == nullptr || potential->has_constant_hessian())),
       mid_(A_.rows()),
       grad_(A_.rows()),
       residual_(A_.rows()),
       delta_(A_.rows()) {
   const Eigen::Index d = A_.rows();
   std::shared_ptr<SymmetricPattern> pattern;
+  if (state_force_ != nullptr) {
+    // ∂g/∂v makes J non-symmetric: only the dense LU factorises it.
+    if (solver == LinearSolver::kBanded || solver == LinearSolver::kSparse) {
+      throw ValidationError(
+          std::string("method.linear_solver = \"") +
+          (solver == LinearSolver::kBanded ? "banded" : "sparse") +
+          "\" cannot factor the Newton matrix of a model with a force g(x, v, t) (model.force "
+          "in x or v): its Jacobian makes the matrix non-symmetric, and the banded and sparse "
+          "factorisations are symmetric (LDL^T); use linear_solver = \"dense\" or \"auto\"");
+    }
+    solver = LinearSolver::kDense;
+    velocity_.setZero(d);
+    force_value_.setZero(d);
+    force_dx_.setZero(d, d);
+    force_dv_.setZero(d, d);
+  }
   backend_ = resolve(solver, A_, potential_, pattern);
   if (backend_ == LinearSolver::kDense) {
     if (d > kMaxDenseDimension) {
@@ -80,6 +100,11 @@ bool MidpointNewton::factor_jacobian(double tau) {
     if (potential_ != nullptr) potential_->hessian(mid_, tau, hessian_);
     jacobian_ = A_.dense();
     jacobian_ += quarter_h2_ * hessian_;
+    // ∂/∂Δ of −(h²/2) g(a + Δ/2, Δ/h): the Jacobians were taken with the residual (solve()).
+    if (state_force_ != nullptr) {
+      jacobian_ -= quarter_h2_ * force_dx_;
+      jacobian_ -= (0.5 * h_) * force_dv_;
+    }
     lu_.compute(jacobian_);
     return true;  // PartialPivLU does not report singularity; it shows as inf/NaN in δ
   }
@@ -112,6 +137,26 @@ void MidpointNewton::effective_gradient(const Eigen::Ref<const Eigen::VectorXd>&
   if (forcing_tau != nullptr) g -= *forcing_tau;
 }
 
+void MidpointNewton::state_force(const Eigen::Ref<const Eigen::VectorXd>& z,
+                                 const Eigen::Ref<const Eigen::VectorXd>& increment, double tau,
+                                 Eigen::Ref<Eigen::VectorXd> out) {
+  if (state_force_ == nullptr) {
+    out.setZero();
+    return;
+  }
+  velocity_ = increment * (1.0 / h_);
+  state_force_->value(z, velocity_, tau, out);
+}
+
+double MidpointNewton::state_force_work(const Eigen::Ref<const Eigen::VectorXd>& a,
+                                        const Eigen::Ref<const Eigen::VectorXd>& increment,
+                                        double tau) {
+  if (state_force_ == nullptr) return 0.0;
+  mid_ = a + 0.5 * increment;
+  state_force(mid_, increment, tau, force_value_);
+  return force_value_.dot(increment);
+}
+
 NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, double tau,
                                    const Eigen::Ref<const Eigen::VectorXd>& c,
                                    const Eigen::VectorXd* forcing_tau,
@@ -122,6 +167,11 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
   for (int it = 1; it <= max_iterations; ++it) {
     mid_ = a + 0.5 * increment;
     effective_gradient(mid_, tau, forcing_tau, grad_);
+    if (state_force_ != nullptr) {
+      velocity_ = increment * (1.0 / h_);
+      state_force_->jacobians(mid_, velocity_, tau, force_value_, force_dx_, force_dv_);
+      grad_ -= force_value_;
+    }
     A_.multiply(increment, residual_);
     residual_ += half_h2_ * grad_;
     residual_ -= c;

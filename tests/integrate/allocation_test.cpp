@@ -5,7 +5,8 @@
 //
 // Covered: linear (constant Hessian, one solve per step) and nonlinear (Newton) paths, local
 // (α = 1/2, 1), direct and fast (α = 0.75) histories, forcing, R = 0, a fixed-size autodiff
-// potential, large FPUT chains on the banded path with OpenMP threads. Control: a dynamic-size
+// potential, large FPUT chains on the banded path with OpenMP threads, a formula state force
+// g(x, v, t). Control: a dynamic-size
 // autodiff potential does allocate, so the counter is live.
 #include <gtest/gtest.h>
 
@@ -17,6 +18,7 @@
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/autodiff_potential.hpp"
 #include "fracvi/model/chain_potential.hpp"
+#include "fracvi/model/expression_potential.hpp"
 #include "integrate_test_support.hpp"
 
 // Interposes malloc for this executable (exactly one translation unit).
@@ -111,6 +113,25 @@ TEST_F(NoAllocation, NoPotential) {
 TEST_F(NoAllocation, FixedSizeAutodiffPotential) {
   Integrator integ(base(0.75, make_autodiff_potential<2>(Duffing2{})));
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
+// A non-conservative force g(x, v, t) from formulas (ExpressionForce): its tape evaluations, the
+// Jacobians and the non-symmetric dense Newton matrix, for every scheme that takes it, with a
+// fractional memory (fast history) and without damping.
+TEST_F(NoAllocation, StateForceFormula) {
+  for (const char* name : {"fvi-gl", "fvi-bdf2", "fvi-midpoint", "fvi-lobatto2", "fvi-lobatto3",
+                           "fvi-lobatto4", "dopri5"}) {
+    for (const double alpha : {0.5, 0.75}) {
+      if (std::string(name) == "dopri5" && alpha != 0.5) continue;  // an ODE scheme
+      InitialValueProblem p = base(alpha, test::pendulum_pair());
+      p.model.state_force = std::make_shared<const ExpressionForce>(
+          2, std::vector<std::string>{"0.8*(1 - x1^2)*v1 - 0.1*x2*v2", "-0.3*v1*v2 + sin(t)"});
+      IntegratorOptions options;
+      options.history = alpha == 0.5 ? HistoryKind::kAuto : HistoryKind::kFast;
+      Integrator integ(p, *parse_method(name), options);
+      EXPECT_EQ(allocations_while_stepping(integ), 0u) << name << " alpha = " << alpha;
+    }
+  }
 }
 
 // Larger d: Eigen's blocked LU, matrix–vector products through GEMV kernels.

@@ -14,6 +14,7 @@
 
 #include "fracvi/core/state_archive.hpp"
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/model/expression_potential.hpp"
 #include "fracvi/schemes/registry.hpp"
 #include "integrate_test_support.hpp"
 
@@ -91,13 +92,18 @@ struct Case {
   std::size_t save_every;
   const char* expected_history;  // what the run used
   ForcingLoad load = ForcingLoad::kPointwise;
+  bool state_force = false;  // add a van der Pol-type g(x, v, t) (Lobatto: its stage velocities)
 };
 
 class CheckpointResume : public ::testing::TestWithParam<Case> {};
 
 TEST_P(CheckpointResume, ContinuesBitForBit) {
   const Case c = GetParam();
-  const InitialValueProblem p = pendula(c.alpha, 240);
+  InitialValueProblem p = pendula(c.alpha, 240);
+  if (c.state_force) {
+    p.model.state_force = std::make_shared<const ExpressionForce>(
+        2, std::vector<std::string>{"0.5*(1 - x1^2)*v1", "-0.2*x1*v2"});
+  }
   const Method method = *parse_method(c.scheme);
   IntegratorOptions options;
   options.history = c.history;
@@ -136,6 +142,13 @@ INSTANTIATE_TEST_SUITE_P(
         Case{"fvi-lobatto2", 0.5, HistoryKind::kAuto, 1, "fast"},  // local blocks
         Case{"fvi-lobatto4", 0.75, HistoryKind::kFast, 1, "fast"},
         Case{"fvi-lobatto4", 0.4, HistoryKind::kDirect, 4, "direct", ForcingLoad::kMoments},
+        // A non-conservative force g(x, v, t): the Lobatto stage matrix is formed again at the
+        // saved stages and stage velocities.
+        Case{"fvi-gl", 0.75, HistoryKind::kFast, 1, "fast", ForcingLoad::kPointwise, true},
+        Case{"fvi-midpoint", 0.75, HistoryKind::kDirect, 3, "direct", ForcingLoad::kPointwise,
+             true},
+        Case{"fvi-lobatto3", 0.75, HistoryKind::kFast, 1, "fast", ForcingLoad::kPointwise, true},
+        Case{"fvi-lobatto2", 0.5, HistoryKind::kAuto, 1, "fast", ForcingLoad::kPointwise, true},
         // Baselines.
         Case{"euler-explicit", 0.75, HistoryKind::kDirect, 1, "direct"},
         Case{"euler-explicit", 0.25, HistoryKind::kFast, 3, "fast"},
@@ -149,7 +162,8 @@ INSTANTIATE_TEST_SUITE_P(
                          std::string(to_string(param_info.param.history)) + "_alpha" +
                          std::to_string(static_cast<int>(param_info.param.alpha * 100)) + "_every" +
                          std::to_string(param_info.param.save_every) +
-                         (param_info.param.load == ForcingLoad::kMoments ? "_moments" : "");
+                         (param_info.param.load == ForcingLoad::kMoments ? "_moments" : "") +
+                         (param_info.param.state_force ? "_state_force" : "");
       for (char& ch : name)
         if (ch == '-') ch = '_';
       return name;

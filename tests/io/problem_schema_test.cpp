@@ -298,6 +298,11 @@ const std::vector<Case>& cases() {
        [](Json& j) {
          j["model"]["force"] = {"0.1*sin(t)", "0"};
        }},
+      // A non-conservative force g(x, v, t): the same key, formulas in x and v too.
+      {"model.force", "",
+       [](Json& j) {
+         j["model"]["force"] = {"0.3*(1 - x1^2)*v1", "-0.1*x2*v2 + 0.2*cos(t)"};
+       }},
       {"model.lagrangian", "",
        [](Json& j) {
          j["model"].erase("mass");

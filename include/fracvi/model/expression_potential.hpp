@@ -1,5 +1,5 @@
-// A potential U(x1..xd, t) given as a formula, e.g. from a problem file, and a force f(t) given as
-// d formulas.
+// A potential U(x1..xd, t) given as a formula, e.g. from a problem file, and a force f(t) or
+// g(x, v, t) given as d formulas.
 //
 // The formula is parsed once; value, gradient and Hessian come from the expression engine's exact
 // symbolic derivatives compiled into one tape (no finite differences).
@@ -12,6 +12,7 @@
 #include "fracvi/expression/expression.hpp"
 #include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/model/potential.hpp"
+#include "fracvi/model/state_force.hpp"
 
 namespace fracvi {
 
@@ -62,5 +63,48 @@ class ExpressionPotential final : public Potential {
 /// f(t) from d formulas in t, as the model's Forcing callback (allocation-free after the first
 /// call on a thread). Throws ExpressionError for a malformed formula.
 Forcing make_expression_forcing(const std::vector<std::string>& force);
+
+/// A non-conservative force g(x, v, t) from d formulas in x1..xd, v1..vd and t, with its exact
+/// Jacobians from the expression engine (each component's gradient with respect to x and v).
+class ExpressionForce final : public StateForce {
+ public:
+  /// Throws ExpressionError (naming the component, with the column) for a malformed formula.
+  ExpressionForce(Eigen::Index dimension, const std::vector<std::string>& force);
+
+  /// The variable names x1..xd, v1..vd, t.
+  static std::vector<std::string> variable_names(Eigen::Index dimension);
+
+  [[nodiscard]] Eigen::Index dimension() const override { return dimension_; }
+  void value(const Eigen::Ref<const Eigen::VectorXd>& x, const Eigen::Ref<const Eigen::VectorXd>& v,
+             double t, Eigen::Ref<Eigen::VectorXd> out) const override;
+  void jacobians(const Eigen::Ref<const Eigen::VectorXd>& x,
+                 const Eigen::Ref<const Eigen::VectorXd>& v, double t,
+                 Eigen::Ref<Eigen::VectorXd> out, Eigen::Ref<Eigen::MatrixXd> dx,
+                 Eigen::Ref<Eigen::MatrixXd> dv) const override;
+
+ private:
+  struct Scratch {
+    std::vector<double> args, gradient;
+    std::vector<CompiledDerivatives::Workspace> workspaces;
+  };
+  Scratch& scratch(const Eigen::Ref<const Eigen::VectorXd>& x,
+                   const Eigen::Ref<const Eigen::VectorXd>& v, double t) const;
+
+  Eigen::Index dimension_;
+  std::vector<CompiledDerivatives> components_;
+  std::uint64_t id_;
+};
+
+/// The model's forces from the `force` formulas (problem files, Python): d formulas in t, x1..xd,
+/// v1..vd, or none. When no formula mentions a name other than t, they become the f(t) callback
+/// of make_expression_forcing, exactly as before state forces existed (published numbers stay
+/// bit-identical); otherwise all of them become one ExpressionForce g(x, v, t) (which throws
+/// ExpressionError for an unknown name).
+struct ExpressionForces {
+  Forcing forcing;
+  std::shared_ptr<const StateForce> state_force;
+};
+ExpressionForces make_expression_forces(Eigen::Index dimension,
+                                        const std::vector<std::string>& force);
 
 }  // namespace fracvi

@@ -1,6 +1,6 @@
 // The mechanical model of the paper (Cor. 4.4, `Damping`, generalised to any α and full matrices)
 //
-//     M x'' + R D^{2α} x + ∇U(x, t) = f(t),   x ∈ R^d,
+//     M x'' + R D^{2α} x + ∇U(x, t) = f(t) + g(x, x', t),   x ∈ R^d,
 //
 // and the initial value problem posed on it.
 //
@@ -16,6 +16,10 @@
 //    evaluates U (midpoints (x_k + x_{k+1})/2 at t_{k+1/2}), so the discrete equations stay
 //    variational. The energy E = ½ vᵀMv + U(x, t) does not contain −f·x; the work of f is booked in
 //    the dissipated work instead (solution.hpp).
+//  * A non-conservative force g(x, v, t) (state_force.hpp: van der Pol, feedback, friction) has no
+//    potential; the variational schemes add it the discrete Lagrange–d'Alembert way
+//    (docs/theory/forces.md) and book its discrete work in W_k like that of f. f(t) stays a
+//    separate field so that a force in t alone keeps its path (and its published numbers) exactly.
 #pragma once
 
 #include "fracvi/core/error.hpp"
@@ -31,6 +35,7 @@
 
 #include "fracvi/model/model_matrix.hpp"
 #include "fracvi/model/potential.hpp"
+#include "fracvi/model/state_force.hpp"
 
 namespace fracvi {
 
@@ -53,7 +58,7 @@ using Forcing = std::function<void(double t, Eigen::Ref<Eigen::VectorXd> out)>;
 /// range, where the fast history's fit cannot be verified (issue 14: α = 1e-308 looped forever).
 inline constexpr double kMinPositiveAlpha = 1e-12;
 
-/// M x'' + R D^{2α} x + ∇U(x, t) = f(t).
+/// M x'' + R D^{2α} x + ∇U(x, t) = f(t) + g(x, x', t).
 struct MechanicalModel {
   /// M, symmetric positive definite, d × d. Dense or sparse (model_matrix.hpp): large systems store
   /// it sparse, e.g. ModelMatrix::identity(d, m).
@@ -66,6 +71,9 @@ struct MechanicalModel {
   Convention convention = Convention::kCaputo;
   std::shared_ptr<const Potential> potential;  ///< U; null means U ≡ 0
   Forcing forcing;                             ///< f; empty means f ≡ 0
+  /// g(x, v, t), the non-conservative force; null means g ≡ 0. Schemes without a discrete
+  /// Lagrange–d'Alembert form for it refuse it before step 1 (SchemeInfo::no_state_force).
+  std::shared_ptr<const StateForce> state_force;
 
   [[nodiscard]] Eigen::Index dimension() const { return mass.rows(); }
   [[nodiscard]] double damping_order() const { return 2.0 * alpha; }

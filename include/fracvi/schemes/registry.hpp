@@ -77,6 +77,10 @@ struct SchemeInfo {
   /// options.start = StartValue::kExplicitEuler (x_1 = x_0 + h v_0, a negative control of the
   /// scheme's own start) is honoured; refused before step 1 otherwise.
   bool explicit_euler_start = false;
+  /// Why the scheme refuses a non-conservative force g(x, v, t) (MechanicalModel::state_force),
+  /// one clause for check_applicable's message; "" when its step takes one (docs/theory/forces.md).
+  /// The default refuses, so that a new scheme states how it treats such forces.
+  std::string_view no_state_force = "its discrete equations have no term for a force g(x, v, t)";
   std::string_view applies_to;      ///< where it applies, in words ("every model", "2α = 1")
   std::string_view stability_rule;  ///< the stability bound in words
   /// The order the scheme reaches on smooth solutions of this model.

@@ -10,6 +10,12 @@
 // the implicit midpoint rule with midpoint damping (c = h M v_k). Its Jacobian is
 // J = A + (h²/4) ∇²U(a + Δ/2, τ).
 //
+// A non-conservative force g(x, v, t) (model/state_force.hpp) enters the same way as f(τ), by the
+// midpoint rule of the discrete Lagrange–d'Alembert principle (docs/theory/forces.md §2): f(τ) is
+// replaced by f(τ) + g(a + Δ/2, Δ/h, τ), so that J gains −(h²/4) ∂g/∂x − (h/2) ∂g/∂v. That
+// Jacobian is not symmetric: with a state force J is always factored dense by LU (the banded and
+// sparse factorisations are LDLᵀ); the constructor refuses a forced banded or sparse solver.
+//
 // Solving for the increment rather than for u keeps round-off out of the momenta: the right-hand
 // side c = O(h) carries no large cancelling terms (solving A u = A a + c would leave a residual of
 // ε‖A a‖, i.e. a momentum error ε‖a‖/h per step).
@@ -32,6 +38,7 @@
 #include "fracvi/core/status.hpp"
 #include "fracvi/model/model_matrix.hpp"
 #include "fracvi/model/potential.hpp"
+#include "fracvi/model/state_force.hpp"
 #include "fracvi/solve/symmetric_factor.hpp"
 
 namespace fracvi::internal {
@@ -57,8 +64,11 @@ class MidpointNewton {
   /// solver picks the factorisation of J (kAuto: from the structure, see
   /// SymmetricFactor); A must be symmetric. Throws ValidationError when the dense path would need
   /// d > kMaxDenseDimension.
+  /// state_force (may be null) is the non-conservative force g(x, v, t), evaluated at the midpoint
+  /// a + Δ/2 with the velocity Δ/h.
   MidpointNewton(ModelMatrix A, double h, const Potential* potential, const NewtonOptions& options,
-                 double t_hessian = 0.0, LinearSolver solver = LinearSolver::kAuto);
+                 double t_hessian = 0.0, LinearSolver solver = LinearSolver::kAuto,
+                 const StateForce* state_force = nullptr);
 
   /// Solves for the increment Δ, starting from the guess in `increment`. forcing_tau is f(τ) or
   /// null (f ≡ 0). Convergence: ‖δ‖_∞ ≤ atol + rtol · max(‖a + Δ‖_∞, ‖a‖_∞), δ the last
@@ -71,6 +81,17 @@ class MidpointNewton {
   void effective_gradient(const Eigen::Ref<const Eigen::VectorXd>& z, double tau,
                           const Eigen::VectorXd* forcing_tau, Eigen::Ref<Eigen::VectorXd> g) const;
 
+  /// out = g(z, Δ/h, τ), the state force of a cell with midpoint z and increment Δ (zero without
+  /// one). Allocation-free.
+  void state_force(const Eigen::Ref<const Eigen::VectorXd>& z,
+                   const Eigen::Ref<const Eigen::VectorXd>& increment, double tau,
+                   Eigen::Ref<Eigen::VectorXd> out);
+  /// g(a + Δ/2, Δ/h, τ)·Δ, the discrete work of the state force over the cell with start a and
+  /// increment Δ (docs/theory/forces.md §3); 0 without one. Allocation-free.
+  double state_force_work(const Eigen::Ref<const Eigen::VectorXd>& a,
+                          const Eigen::Ref<const Eigen::VectorXd>& increment, double tau);
+  [[nodiscard]] bool has_state_force() const { return state_force_ != nullptr; }
+
   [[nodiscard]] bool is_linear() const { return linear_; }
   /// The factorisation in use: kDense, kBanded or kSparse.
   [[nodiscard]] LinearSolver linear_solver() const { return backend_; }
@@ -82,7 +103,9 @@ class MidpointNewton {
   ModelMatrix A_;
   double half_h2_;     // h²/2
   double quarter_h2_;  // h²/4
+  double h_;
   const Potential* potential_;
+  const StateForce* state_force_;
   NewtonOptions options_;
   bool linear_;
   LinearSolver backend_;
@@ -98,6 +121,9 @@ class MidpointNewton {
   bool constant_factor_ok_ = true;  // linear problems: J factored once in the constructor  //
                                     // potential without a sparse Hessian, forced structured
   Eigen::VectorXd mid_, grad_, residual_, delta_;
+  // The state force at the current iterate and its Jacobians (dense path only).
+  Eigen::VectorXd velocity_, force_value_;
+  Eigen::MatrixXd force_dx_, force_dv_;
 };
 
 }  // namespace fracvi::internal
