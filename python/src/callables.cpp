@@ -23,25 +23,6 @@ std::string shape_text(const py::array& a) {
   return s + (a.ndim() == 1 ? ",)" : ")");
 }
 
-/// The exception as Python prints it, its "Type: message" line first: the step's message buffer
-/// (Stepper::failure_detail, 4 KB) then cuts deep tracebacks, not the message.
-std::string formatted(const py::error_already_set& e) {
-  try {
-    const py::module_ traceback = py::module_::import("traceback");
-    std::string text;
-    for (const auto& line : traceback.attr("format_exception_only")(e.type(), e.value())) {
-      text += line.cast<std::string>();
-    }
-    text += "Traceback (most recent call last):\n";
-    for (const auto& line : traceback.attr("format_tb")(e.trace()))
-      text += line.cast<std::string>();
-    while (!text.empty() && text.back() == '\n') text.pop_back();
-    return text;
-  } catch (const py::error_already_set&) {
-    return e.what();  // pybind11's own rendering, with the frames
-  }
-}
-
 class PythonPotential final : public Potential {
  public:
   PythonPotential(Eigen::Index dimension, py::object value, py::object gradient, py::object hessian)
@@ -123,7 +104,7 @@ class PythonPotential final : public Potential {
                                  py::str(e.type().attr("__name__")).cast<std::string>() + ")");
       }
       throw std::runtime_error(std::string("model.") + field + "(x, t) raised an exception:\n" +
-                               formatted(e));
+                               exception_text(e));
     }
   }
 
@@ -190,6 +171,23 @@ class PythonPotential final : public Potential {
 };
 
 }  // namespace
+
+std::string exception_text(const py::error_already_set& e) {
+  try {
+    const py::module_ traceback = py::module_::import("traceback");
+    std::string text;
+    for (const auto& line : traceback.attr("format_exception_only")(e.type(), e.value())) {
+      text += line.cast<std::string>();
+    }
+    text += "Traceback (most recent call last):\n";
+    for (const auto& line : traceback.attr("format_tb")(e.trace()))
+      text += line.cast<std::string>();
+    while (!text.empty() && text.back() == '\n') text.pop_back();
+    return text;
+  } catch (const py::error_already_set&) {
+    return e.what();  // pybind11's own rendering, with the frames
+  }
+}
 
 std::shared_ptr<const Potential> make_python_potential(long long dimension, py::object value,
                                                        py::object gradient, py::object hessian) {

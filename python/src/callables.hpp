@@ -24,6 +24,11 @@ namespace fracvi::python {
 
 namespace py = pybind11;
 
+/// A Python exception as Python prints it, its "Type: message" line first and then the traceback
+/// (most recent call last), for a run's message: the step's message buffer
+/// (Stepper::failure_detail, 4 KB) then cuts deep tracebacks, not the message. Needs the GIL.
+std::string exception_text(const py::error_already_set& e);
+
 /// U, ∇U (required) and ∇²U (optional: None) as Python functions of (x, t). Without a Hessian
 /// function ∇²U is the central difference of the gradient, column by column with the step
 /// ε^{1/3}·max(1, |x_i|) (2d gradient calls; it only enters Newton's Jacobian, so the converged

@@ -291,24 +291,6 @@ struct RunOptions {
   std::vector<py::tuple> events;
 };
 
-/// "TypeError: message" and the traceback (most recent call last) of a Python exception, for the
-/// run's message: the exception first (the message is cut at its end when long).
-std::string exception_text(py::error_already_set& e) {
-  std::string text = py::str(e.type().attr("__name__")).cast<std::string>() + ": " +
-                     py::str(e.value()).cast<std::string>();
-  if (e.trace()) {
-    text += " (traceback, most recent call last:";
-    const py::list frames = py::module_::import("traceback").attr("extract_tb")(e.trace());
-    for (const auto& frame : frames) {
-      text += " " + py::str(frame.attr("filename")).cast<std::string>() + ":" +
-              py::str(frame.attr("lineno")).cast<std::string>() + " in " +
-              py::str(frame.attr("name")).cast<std::string>() + ";";
-    }
-    text.back() = ')';
-  }
-  return text;
-}
-
 /// A Python callable g(t, x, v) as an Event: called with the GIL taken (the runs release it),
 /// with x and v as new read-only NumPy arrays. It must return one real number: a Python
 /// exception, or a result that is not one number (an array of another size, a string, None),
@@ -346,7 +328,7 @@ Event python_event(const py::tuple& item, std::size_t index) {
                 py::str(py::type::of(result).attr("__name__")).cast<std::string>() + ", shape " +
                 shape + "): it must return one real number";
     } catch (py::error_already_set& e) {
-      problem = exception_text(e);
+      problem = python::exception_text(e);
     }
     throw std::runtime_error(problem);
   };
