@@ -467,7 +467,9 @@ class Problem:
     newton_tolerance = property(lambda self: self._spec.newton_tolerance)
     newton_max_iterations = property(lambda self: self._spec.newton_max_iterations)
     history = property(lambda self: self._spec.history, doc='"auto", "direct" or "fast"')
-    history_tolerance = property(lambda self: self._spec.history_tolerance)
+    history_tolerance = property(
+        lambda self: "auto" if self._spec.history_tolerance == 0.0 else self._spec.history_tolerance,
+        doc='method.history_tolerance: "auto" (chosen from the run) or the number given')
     abs_tolerance = property(lambda self: self._spec.abs_tolerance)
     rel_tolerance = property(lambda self: self._spec.rel_tolerance)
     linear_solver = property(lambda self: self._spec.linear_solver,
@@ -606,6 +608,14 @@ class Solution:
     setup_time = _view("setup_time", "seconds of set-up before step 1 (weights, the fast "
                        "history's fit or FFT plans, factorisations); the run's whole cost is "
                        "setup_time + wall_time")
+    history_tolerance = _view("history_tolerance",
+                              "the fast history's per-weight accuracy ε used (NaN without a fast "
+                              "history); history_tolerance_auto: chosen by the accuracy budget")
+    history_tolerance_auto = _view("history_tolerance_auto",
+                                   "True when the accuracy budget chose history_tolerance")
+    history_limited = _view("history_limited",
+                            "True when the budget asked for less than the fit's floor 1e-13: the "
+                            "history may limit the accuracy")
     method = _view("method", 'the scheme, e.g. "fvi-gl"')
     linear_solver = _view("linear_solver",
                           'factorisation of the Newton matrix used: "dense", "banded" or "sparse"')

@@ -1112,6 +1112,12 @@ void bind(py::module_& m) {
                              [](const Run& r) { return r.solution.max_balance_error; })
       .def_property_readonly("wall_time", [](const Run& r) { return r.solution.wall_time_seconds; })
       .def_property_readonly("setup_time", [](const Run& r) { return r.solution.setup_seconds; })
+      .def_property_readonly("history_tolerance",
+                             [](const Run& r) { return r.solution.history_tolerance; })
+      .def_property_readonly("history_tolerance_auto",
+                             [](const Run& r) { return r.solution.history_tolerance_auto; })
+      .def_property_readonly("history_limited",
+                             [](const Run& r) { return r.solution.history_limited; })
       .def_property_readonly("method", [](const Run& r) { return r.solution.method; })
       .def_property_readonly("declared_order",
                              [](const Run& r) { return r.solution.declared_order; })

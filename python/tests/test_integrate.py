@@ -273,6 +273,37 @@ def test_schemes_and_schema_keywords(cli, write_file, tmp_path):
         fracvi.integrate(path, scheme="fvi-bdf3")
 
 
+def test_history_tolerance_auto_is_recorded(cli, write_file, tmp_path):
+    """method.history_tolerance: "auto" (the default) lets the accuracy budget choose the fast
+    history's ε; a number is used exactly. Both are recorded in the Solution and summary.json."""
+    path = write_file(FRACTIONAL.replace("steps = 400", "steps = 8192"))
+    problem = fracvi.Problem.from_toml(open(path).read())
+    assert problem.history_tolerance == "auto"
+    sol = fracvi.integrate(path, scheme="fvi-gl", history="fast", mirror=False)
+    assert sol.ok and sol.history_tolerance_auto and not sol.history_limited
+    assert 1e-13 <= sol.history_tolerance <= 1e-10
+    summary = sol.summary()
+    assert summary["history_tolerance"] == sol.history_tolerance
+    assert summary["history_tolerance_mode"] == "auto"
+    assert summary["problem"]["method"]["history_tolerance"] == "auto"
+    user = fracvi.integrate(path, scheme="fvi-gl", history="fast", mirror=False,
+                            history_tolerance=3e-9)
+    assert user.history_tolerance == 3e-9 and not user.history_tolerance_auto
+    assert user.summary()["history_tolerance_mode"] == "user"
+    direct = fracvi.integrate(path, scheme="fvi-gl", history="direct", mirror=False)
+    assert math.isnan(direct.history_tolerance)
+    # The CLI records the same, and fracvi.load reads it back.
+    out = str(tmp_path / "auto")
+    r = cli("run", path, "--set", "method.scheme=fvi-gl", "--set", "method.history=fast",
+            "--set", "method.history_tolerance=auto", "--out", out, "--no-plot", "--quiet")
+    assert r.returncode == 0, r.stderr
+    written = read_summary(out)
+    assert written["history_tolerance"] == sol.history_tolerance
+    assert written["history_tolerance_mode"] == "auto" and written["history_limited"] is False
+    loaded = fracvi.load(out)
+    assert loaded.history_tolerance == sol.history_tolerance and loaded.history_tolerance_auto
+
+
 def test_memory_is_estimated_before_allocating():
     # The stored trajectory ((N + 1) rows of 16 d + 40 bytes) is refused with the number, as on
     # the command line, instead of a MemoryError (or the OOM killer) after the set-up.

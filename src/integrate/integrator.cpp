@@ -14,6 +14,7 @@
 #include "fracvi/core/error.hpp"
 #include "fracvi/core/memory.hpp"
 #include "fracvi/integrate/dense_output.hpp"
+#include "fracvi/schemes/history_budget.hpp"
 
 namespace fracvi {
 
@@ -28,12 +29,13 @@ void validate(const IntegratorOptions& options) {
       options.history != HistoryKind::kFast) {
     throw ValidationError("options.history has an unknown value");
   }
-  if (!(options.history_tolerance >= kMinHistoryTolerance &&
+  if (options.history_tolerance != kAutoHistoryTolerance &&
+      !(options.history_tolerance >= kMinHistoryTolerance &&
         options.history_tolerance <= kMaxHistoryTolerance)) {
     throw ValidationError(
         "options.history_tolerance = " + format_number(options.history_tolerance) +
-        " must be in [" + format_number(kMinHistoryTolerance) + ", " +
-        format_number(kMaxHistoryTolerance) +
+        " must be 0 (auto: chosen from the run) or in [" + format_number(kMinHistoryTolerance) +
+        ", " + format_number(kMaxHistoryTolerance) +
         "] (per-weight relative accuracy of the fast history)");
   }
   // Tolerances of the adaptive schemes: positive, not both zero, the relative one above round-off.
@@ -76,6 +78,11 @@ InitialValueProblem validated(InitialValueProblem problem, const Method& method,
   return problem;
 }
 
+IntegratorOptions with_tolerance(IntegratorOptions options, double history_tolerance) {
+  options.history_tolerance = history_tolerance;
+  return options;
+}
+
 // Stored rows for N steps every s steps: 0, s, 2s, …, and N.
 std::size_t stored_rows(std::size_t n_steps, std::size_t every) {
   return n_steps / every + 1 + (n_steps % every != 0 ? 1 : 0);
@@ -112,7 +119,8 @@ void check_storage(const InitialValueProblem& problem, const IntegratorOptions& 
 struct Integrator::Impl {
   InitialValueProblem problem;  // the stepper refers to it: Impl never moves (held by pointer)
   Method method;
-  IntegratorOptions options;
+  HistoryBudget budget;       // the fast history's ε (history_budget.hpp)
+  IntegratorOptions options;  // as given, with history_tolerance = budget.tolerance
   Eigen::Index d;
   std::size_t n_steps;
   double h;
@@ -165,7 +173,9 @@ struct Integrator::Impl {
   Impl(InitialValueProblem prob, Method meth, IntegratorOptions opts)
       : problem(std::move(prob)),
         method(meth),
-        options(opts),
+        budget(
+            history_budget(problem, method.declared_order(problem.model), opts.history_tolerance)),
+        options(with_tolerance(opts, budget.tolerance)),
         d(problem.model.dimension()),
         n_steps(problem.steps),
         h(problem.step_size()),
@@ -188,6 +198,11 @@ struct Integrator::Impl {
     sol.linear_solver = std::string(to_string(stepper->linear_solver()));
     sol.history_bytes = stepper->history_bytes();
     sol.history = std::string(stepper->history_kind());
+    if (sol.history == "fast") {
+      sol.history_tolerance = budget.tolerance;
+      sol.history_tolerance_auto = budget.automatic;
+      sol.history_limited = budget.limited;
+    }
     if (options.diagnostics) {
       e0 = energy(0);
       energy_k = e0;

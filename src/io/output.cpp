@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cerrno>
 #include <charconv>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -317,6 +318,10 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
       {"max_newton_iterations_per_step", s.max_newton_iterations_per_step},
       {"linear_solver", s.linear_solver},
       {"history", s.history},
+      {"history_tolerance", json_number(s.history_tolerance)},
+      {"history_tolerance_mode",
+       std::isfinite(s.history_tolerance) ? (s.history_tolerance_auto ? "auto" : "user") : ""},
+      {"history_limited", s.history_limited},
       {"save_every", s.save_every},
       {"output_times", s.output_t.size()},
       {"events", events_json(s)},
@@ -399,6 +404,17 @@ void read_summary(const nlohmann::json& summary, Solution& s, const std::string&
   s.max_newton_iterations_per_step = r.count(summary, "max_newton_iterations_per_step");
   s.linear_solver = r.text(summary, "linear_solver");
   s.history = r.text(summary, "history");
+  if (summary.contains("history_tolerance")) {
+    s.history_tolerance = r.number(summary, "history_tolerance");
+    s.history_tolerance_auto = r.text(summary, "history_tolerance_mode") == "auto";
+    const auto& limited = r.at(summary, "history_limited");
+    if (!limited.is_boolean())
+      r.fail("history_limited", "= " + limited.dump() + " is not true/false");
+    s.history_limited = limited.get<bool>();
+  } else {  // written before the accuracy budget (issue 17): ε was not recorded
+    s.history_tolerance = std::numeric_limits<double>::quiet_NaN();
+    s.history_tolerance_auto = s.history_limited = false;
+  }
   s.save_every = r.count(summary, "save_every");
   if (s.save_every < 1) r.fail("save_every", "= 0 is not a storage stride (at least 1)");
   if (summary.contains("stepping_wall_seconds")) {

@@ -651,12 +651,23 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     }
   }
   if (const auto* n = r.find("method", "history_tolerance")) {
-    p.history_tolerance = r.number(*n, "method.history_tolerance");
-    if (!(p.history_tolerance >= kMinHistoryTolerance &&
-          p.history_tolerance <= kMaxHistoryTolerance)) {
-      r.fail("method.history_tolerance", "= " + format_value(p.history_tolerance) +
-                                             " must be in [1e-13, 1e-3] (per-weight relative "
-                                             "accuracy of the fast history)");
+    // "auto" (the default): the accuracy budget chooses ε from the run (history_budget.hpp).
+    if (n->is_string()) {
+      const std::string value = r.string(*n, "method.history_tolerance");
+      if (value != "auto") {
+        r.fail("method.history_tolerance",
+               "= \"" + value + "\" must be \"auto\" or a number in [1e-13, 1e-3]");
+      }
+      p.history_tolerance = kAutoHistoryTolerance;
+    } else {
+      p.history_tolerance = r.number(*n, "method.history_tolerance");
+      if (!(p.history_tolerance >= kMinHistoryTolerance &&
+            p.history_tolerance <= kMaxHistoryTolerance)) {
+        r.fail("method.history_tolerance", "= " + format_value(p.history_tolerance) +
+                                               " must be \"auto\" or in [1e-13, 1e-3] "
+                                               "(per-weight relative accuracy of the fast "
+                                               "history)");
+      }
     }
   }
   // The adaptive schemes' tolerances (IntegratorOptions::abs_tolerance, rel_tolerance).

@@ -189,9 +189,14 @@ std::vector<ProblemField> make_schema() {
        [](P p) { return Json(static_cast<std::int64_t>(p.newton_max_iterations)); }},
       {"method", "history", "string", in_quotes(d.history), "auto, direct or fast",
        FRACVI_BINDING(IntegratorOptions, history), [](P p) { return Json(p.history); }},
-      {"method", "history_tolerance", "number", format_number(d.history_tolerance),
-       "fast-history accuracy", FRACVI_BINDING(IntegratorOptions, history_tolerance),
-       [](P p) { return Json(p.history_tolerance); }},
+      {"method", "history_tolerance", "number or string", in_quotes("auto"),
+       "\"auto\" (chosen from the run: the accuracy budget, docs/theory/fast_history.md) or "
+       "1e-13 ... 1e-3: per-weight relative accuracy of the fast history",
+       FRACVI_BINDING(IntegratorOptions, history_tolerance),
+       [](P p) {
+         return p.history_tolerance == kAutoHistoryTolerance ? Json("auto")
+                                                             : Json(p.history_tolerance);
+       }},
       {"method", "abs_tolerance", "number", format_number(d.abs_tolerance),
        "absolute error tolerance of the adaptive schemes (dopri5)",
        FRACVI_BINDING(IntegratorOptions, abs_tolerance), [](P p) { return Json(p.abs_tolerance); }},

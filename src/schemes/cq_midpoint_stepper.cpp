@@ -1,5 +1,6 @@
 #include "cq_midpoint_stepper.hpp"
 
+#include "fracvi/schemes/history_budget.hpp"
 #include "mirror_run.hpp"
 #include "power_differences.hpp"
 
@@ -68,8 +69,8 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
     poly_scale_ = std::pow(h_, order - 2.0);
   }
   if (use_history_) {
-    history_ =
-        make_history(options.history, damping_sum_, d_, n_steps_ + 1, options.history_tolerance);
+    history_ = make_history(options.history, damping_sum_, d_, n_steps_ + 1,
+                            stepper_history_tolerance(options));
     history_->set_threads(options.threads);
   }
   for (Eigen::VectorXd* vec :
@@ -279,7 +280,7 @@ double CqMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
     void start(const Eigen::VectorXd& y_n, const Eigen::VectorXd& y_n1) {
       if (!self.damped_) return;
       hist = make_history(self.options_.history, self.damping_sum_, self.d_, n + 1,
-                          self.options_.history_tolerance);
+                          stepper_history_tolerance(self.options_));
       hist->set_threads(self.options_.threads);
       push(y_n, n);
       push(y_n1, n - 1);

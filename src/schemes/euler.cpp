@@ -23,6 +23,7 @@
 #include "fracvi/fractional/convolution_quadrature.hpp"
 #include "fracvi/memory/history.hpp"
 #include "fracvi/model/potential.hpp"
+#include "fracvi/schemes/history_budget.hpp"
 #include "fracvi/schemes/stability.hpp"
 #include "fracvi/schemes/stepper.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
@@ -62,7 +63,8 @@ class EulerStepper final : public Stepper {
     if (damped_ && gamma_ > 0.0) {
       // Explicit: the whole sum at known states; implicit: the known part (lag 1).
       const ConvolutionQuadrature q{CqScheme::kGrunwaldLetnikov, gamma_, implicit ? 1u : 0u};
-      history_ = make_history(options.history, q, d_, problem.steps + 2, options.history_tolerance);
+      history_ = make_history(options.history, q, d_, problem.steps + 2,
+                              stepper_history_tolerance(options));
       history_->set_threads(options.threads);
     }
     for (Eigen::VectorXd* vec : {&x_, &x_next_, &v_, &v_next_, &p_, &z_, &sum_, &force_, &grad_,

@@ -48,6 +48,7 @@
 #include "fracvi/core/error.hpp"
 #include "fracvi/fractional/runge_kutta_cq.hpp"
 #include "fracvi/memory/block_history.hpp"
+#include "fracvi/schemes/history_budget.hpp"
 #include "fracvi/schemes/stability.hpp"
 #include "fracvi/schemes/stepper.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
@@ -460,7 +461,7 @@ class LobattoStepper final : public Stepper {
       // β = 0: W_j = 0 for j ≥ 1, nothing to remember.
       if (beta_ > 0.0) {
         history_ = make_block_history(options.history, known, d_, problem.steps,
-                                      options.history_tolerance);
+                                      stepper_history_tolerance(options));
         history_->set_threads(options.threads);
       }
     }
@@ -793,7 +794,7 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
   std::unique_ptr<BlockHistory> history;
   if (damped_ && beta_ > 0.0) {
     history = make_block_history(options_.history, RungeKuttaCq{s_, beta_, 1}, d_, n_steps,
-                                 options_.history_tolerance);
+                                 stepper_history_tolerance(options_));
   }
   std::unique_ptr<PowerMoments> velocity_load, position_load;
   if (velocity_load_) velocity_load = std::make_unique<PowerMoments>(*velocity_load_);

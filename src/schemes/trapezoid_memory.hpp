@@ -30,6 +30,7 @@
 #include "fracvi/fractional/convolution_quadrature.hpp"
 #include "fracvi/memory/history.hpp"
 #include "fracvi/model/mechanical_model.hpp"
+#include "fracvi/schemes/history_budget.hpp"
 #include "fracvi/schemes/options.hpp"
 #include "power_differences.hpp"
 
@@ -93,7 +94,7 @@ class NodeAveragedTrapezoid {
                                        const IntegratorOptions& options) {
     if (order == 0.0) return nullptr;
     auto history = make_history(options.history, {CqScheme::kGrunwaldLetnikov, order, /*lag=*/1},
-                                dimension, capacity, options.history_tolerance);
+                                dimension, capacity, stepper_history_tolerance(options));
     history->set_threads(options.threads);
     return history;
   }

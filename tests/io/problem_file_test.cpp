@@ -539,6 +539,27 @@ TEST(ProblemFile, MirrorCheckAutoOnOff) {
   expect_error(kBase + "[method]\nmirror = true\n", {"method.mirror", "must be a string"});
 }
 
+// method.history_tolerance: "auto" (the default, the accuracy budget) or a number used exactly.
+TEST(ProblemFile, HistoryToleranceAutoOrNumber) {
+  EXPECT_EQ(parse(kBase).history_tolerance, kAutoHistoryTolerance);
+  EXPECT_EQ(make_integrator_options(parse(kBase)).history_tolerance, kAutoHistoryTolerance);
+  const ProblemSpec given = parse(kBase + "[method]\nhistory_tolerance = 3e-12\n");
+  EXPECT_EQ(make_integrator_options(given).history_tolerance, 3e-12);
+  EXPECT_EQ(parse(kBase, {"method.history_tolerance=auto"}).history_tolerance,
+            kAutoHistoryTolerance);
+  const ProblemSpec automatic = parse(kBase + "[method]\nhistory_tolerance = \"auto\"\n");
+  EXPECT_EQ(automatic.history_tolerance, kAutoHistoryTolerance);
+  EXPECT_EQ(parse_problem(to_toml(automatic), "round-trip").history_tolerance,
+            kAutoHistoryTolerance);
+  EXPECT_EQ(parse_problem(to_toml(given), "round-trip").history_tolerance, 3e-12);
+  expect_error(kBase + "[method]\nhistory_tolerance = \"tight\"\n",
+               {"method.history_tolerance", "must be \"auto\" or a number"});
+  expect_error(kBase + "[method]\nhistory_tolerance = 1e-15\n",
+               {"method.history_tolerance", "must be \"auto\" or in [1e-13, 1e-3]"});
+  expect_error(kBase + "[method]\nhistory_tolerance = 0\n",
+               {"method.history_tolerance", "must be \"auto\" or in [1e-13, 1e-3]"});
+}
+
 TEST(ProblemFile, RoundTripOfTheNewKeys) {
   const std::string text = chain_with("[time]", "velocity = \"0.01*i\"\n[time]") +
                            "[method]\nlinear_solver = \"sparse\"\nthreads = 1\n[output]\nevery = "

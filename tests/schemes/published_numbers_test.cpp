@@ -274,19 +274,10 @@ TEST(PublishedNumbers, MomentLoadIsRefusedForSchemesWithoutIt) {
 }
 
 // pi-trapezoid on Garrappa's multi-term example (file comment).
-constexpr double kGarrappaExact = -0.061964539893443569;
+constexpr double kGarrappaExact = test::kCaputoOscillatorExact;
 
 double garrappa_error(std::size_t steps_per_unit) {
-  InitialValueProblem p;
-  p.model.mass = Eigen::MatrixXd::Identity(1, 1);
-  p.model.damping = Eigen::MatrixXd::Constant(1, 1, 0.5);
-  p.model.alpha = 0.75;
-  p.model.convention = Convention::kCaputo;
-  p.model.potential = make_quadratic_potential(Eigen::MatrixXd::Identity(1, 1));
-  p.x0 = Eigen::VectorXd::Constant(1, 1.0);
-  p.v0 = Eigen::VectorXd::Zero(1);
-  p.t_end = 20.0;
-  p.steps = 20 * steps_per_unit;
+  const InitialValueProblem p = test::caputo_oscillator(20 * steps_per_unit);
   IntegratorOptions options;
   options.mirror = false;
   options.diagnostics = false;

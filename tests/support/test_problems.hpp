@@ -23,6 +23,24 @@ namespace fracvi::test {
 // invariance and stability cases).
 
 /// M of the coupled pendula.
+// Garrappa's multi-term example (the issue-17 problem): y'' + 0.5 D^{3/2}y + y = 0 (Caputo),
+// y(0) = 1, y'(0) = 0 on [0, 20]; exact y(20) = kCaputoOscillatorExact (published, checked
+// against the Laplace inversion in published_numbers_test).
+inline constexpr double kCaputoOscillatorExact = -0.061964539893443569;
+inline InitialValueProblem caputo_oscillator(std::size_t steps) {
+  InitialValueProblem p;
+  p.model.mass = Eigen::MatrixXd::Identity(1, 1);
+  p.model.damping = Eigen::MatrixXd::Constant(1, 1, 0.5);
+  p.model.alpha = 0.75;
+  p.model.convention = Convention::kCaputo;
+  p.model.potential = make_quadratic_potential(Eigen::MatrixXd::Identity(1, 1));
+  p.x0 = Eigen::VectorXd::Constant(1, 1.0);
+  p.v0 = Eigen::VectorXd::Zero(1);
+  p.t_end = 20.0;
+  p.steps = steps;
+  return p;
+}
+
 inline Eigen::MatrixXd pendula_mass() {
   return Eigen::MatrixXd{{1.5, 0.3}, {0.3, 1.0}};
 }

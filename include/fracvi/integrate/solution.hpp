@@ -101,6 +101,13 @@ struct Solution {
   std::size_t history_bytes = 0;  ///< memory of the damping history (History::memory_bytes)
   /// The damping memory used: "direct", "fast", "local" or "none" (what "auto" chose).
   std::string history = "none";
+  /// The per-weight relative accuracy ε of the fast history (NaN when the run has none: direct,
+  /// local, FFT or no memory), and whether the accuracy budget chose it ("auto") or the user
+  /// (history_budget.hpp). history_limited: the budget asked for less than the fit can deliver
+  /// (1e-13), so the history may limit the accuracy of this run.
+  double history_tolerance = std::numeric_limits<double>::quiet_NaN();
+  bool history_tolerance_auto = false;
+  bool history_limited = false;
 
   /// max_k ‖y_k − x_{N−k}‖_∞ from the independent backward run of the mirror equation
   /// (`DiscEqs`, second line); NaN if not computed (disabled, or the run did not succeed).

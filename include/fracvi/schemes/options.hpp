@@ -55,12 +55,18 @@ std::string_view to_string(ErrorEstimateKind kind);
 /// sum-of-exponentials fit: below 1e-13 the fit is limited by round-off, above 1e-3 it is useless).
 inline constexpr double kMinHistoryTolerance = 1e-13;
 inline constexpr double kMaxHistoryTolerance = 1e-3;
+/// IntegratorOptions::history_tolerance = kAutoHistoryTolerance (the default, "auto" in problem
+/// files and Python): the run chooses ε from its step size, damping order, the scheme's order and
+/// λ_max(M⁻¹R) (history_budget(), fracvi/schemes/history_budget.hpp; fast_history.md §10).
+inline constexpr double kAutoHistoryTolerance = 0.0;
 
 struct IntegratorOptions {
   NewtonOptions newton;
   HistoryKind history = HistoryKind::kAuto;
-  /// Per-weight relative accuracy ε of the fast history (its sum-of-exponentials fit).
-  double history_tolerance = 1e-10;
+  /// Per-weight relative accuracy ε of the fast history (its sum-of-exponentials fit):
+  /// kAutoHistoryTolerance (0) lets the run choose it (history_budget()); a number in
+  /// [kMinHistoryTolerance, kMaxHistoryTolerance] is used exactly.
+  double history_tolerance = kAutoHistoryTolerance;
   /// Run the mirror equation backwards and report Solution::mirror_error (doubles the cost).
   bool mirror = true;
   /// Compute energy, dissipated work and balance every step (one potential value per step, three
