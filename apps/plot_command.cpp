@@ -14,7 +14,8 @@ Command add_plot_command(CLI::App& parent) {
   CLI::App* app = parent.add_subcommand(
       "plot",
       "Redraw the plots of an output directory: trajectory.png, phase.png and energy.png (and "
-      "spacetime.png for d > 8) from trajectory.csv (or trajectory.npz: fracvi.write) and "
+      "spacetime.png for d > 8) from trajectory.csv (or trajectory.npz: output.format = \"npz\") "
+      "and "
       "summary.json (fracvi run), or "
       "convergence.png from convergence.csv "
       "(fracvi convergence). Uses matplotlib through Debian's /usr/bin/python3.");

@@ -38,9 +38,10 @@ Command add_run_command(CLI::App& parent) {
   auto opt = std::make_shared<Options>();
   CLI::App* app = parent.add_subcommand(
       "run",
-      "Integrate M x'' + R D^(2 alpha) x + grad U(x, t) = f(t) with the paper's fractional "
-      "variational integrator (DiscEqs) and write trajectory.csv, summary.json, problem.toml and "
-      "plots into the output directory. Without a problem file, runs the built-in problem (a "
+      "Integrate M x'' + R D^(2 alpha) x + grad U(x, t) = f with a fractional variational "
+      "integrator (method.scheme; `fracvi methods` lists them) and write trajectory.csv (or "
+      "trajectory.npz: output.format), summary.json, problem.toml and plots into the output "
+      "directory. Without a problem file, runs the built-in problem (a "
       "forced Duffing oscillator with Bagley-Torvik damping). Exit status: 0 success, 1 "
       "numerical failure (files still written), 2 bad input, 130 interrupted by SIGINT, SIGTERM "
       "or SIGHUP (files written up to the signal, status interrupted).");
@@ -235,8 +236,8 @@ Command add_run_command(CLI::App& parent) {
                     solution.events.size() == 1 ? "" : "s", crossings.empty() ? "" : ": ",
                     crossings.c_str());
       }
-      std::printf("  output            %s/{trajectory.csv,%s%ssummary.json,problem.toml%s}\n",
-                  dir.string().c_str(), spec.times.empty() ? "" : "times.csv,",
+      std::printf("  output            %s/{trajectory.%s,%s%ssummary.json,problem.toml%s}\n",
+                  dir.string().c_str(), spec.format.c_str(), spec.times.empty() ? "" : "times.csv,",
                   spec.events.empty() ? "" : "events.csv,",
                   !opt->no_plot && plot_note.empty() ? ",*.png" : "");
       if (!plot_note.empty()) std::printf("  plots             %s\n", plot_note.c_str());

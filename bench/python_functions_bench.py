@@ -7,7 +7,10 @@ damping (2α = 1.2, fast history), fvi-gl, mirror run and error estimate off. Th
 one process, interleaved: the formula; Python functions U, gradient and Hessian (NumPy,
 vectorised); the same without the Hessian (central differences of the gradient). Prints the time
 per step, the ratios to the formula run, Newton iterations, and the largest difference between the
-trajectories (it must be round-off: the same equations). Not a test; bench/RESULTS.md records it.
+trajectories (it must be round-off: the same equations). A second table does the same for the
+force g(x, v, t) = -C x_i^2 v_i (nonlinear friction) with the formula potential: formula force,
+Python g with its Jacobians, Python g without them (central differences).
+Not a test; bench/RESULTS.md records it.
 """
 import sys
 import time
@@ -40,6 +43,21 @@ def H(x, t):
     h[i, i + 1] -= K
     h[i + 1, i] -= K
     return h
+
+
+C = 0.3
+
+
+def g(x, v, t):
+    return -C * x * x * v
+
+
+def g_jacobian(x, v, t):
+    return np.diag(-2.0 * C * x * v), np.diag(-C * x * x)
+
+
+def force_formulas(d):
+    return [f"-{C}*x{i}^2*v{i}" for i in range(1, d + 1)]
 
 
 def formula(d):
@@ -76,6 +94,31 @@ def main():
             "formula": problem(d, steps, potential=formula(d)),
             "functions": problem(d, steps, potential=U, gradient=dU, hessian=H),
             "difference": problem(d, steps, potential=U, gradient=dU),
+        }
+        results = {name: timed(p, repeats) for name, p in runs.items()}
+        per_step = {name: 1e6 * t / steps for name, (t, _) in results.items()}
+        sols = {name: s for name, (_, s) in results.items()}
+        for name, s in sols.items():
+            assert s.status == "success", (name, s.message)
+        newton = "/".join(str(sols[n].summary()["newton_iterations"])
+                          for n in ("formula", "functions", "difference"))
+        dx = max(np.max(np.abs(sols[n].x - sols["formula"].x)) for n in ("functions",
+                                                                         "difference"))
+        print(f"{d:>4} {per_step['formula']:>9.2f} {per_step['functions']:>10.2f} "
+              f"{per_step['functions'] / per_step['formula']:>6.1f} "
+              f"{per_step['difference']:>11.2f} "
+              f"{per_step['difference'] / per_step['formula']:>6.1f} {newton:>14} {dx:>9.1e}")
+
+
+    print(f"\nthe force g(x, v, t) = -C x^2 v; time per step in µs")
+    print(f"{'d':>4} {'formula':>9} {'function':>10} {'ratio':>6} {'no jacobian':>11} "
+          f"{'ratio':>6} {'newton f/p/nj':>14} {'max |Δx|':>9}")
+    for d in (1, 2, 10, 50):
+        runs = {
+            "formula": problem(d, steps, potential=formula(d), force=force_formulas(d)),
+            "functions": problem(d, steps, potential=formula(d), force=g,
+                                 force_jacobian=g_jacobian),
+            "difference": problem(d, steps, potential=formula(d), force=g),
         }
         results = {name: timed(p, repeats) for name, p in runs.items()}
         per_step = {name: 1e6 * t / steps for name, (t, _) in results.items()}

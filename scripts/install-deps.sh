@@ -10,6 +10,7 @@ packages=(
   liblapacke-dev                          # banded Cholesky/LU (dpbtrf, dgbtrf) for chains
   libboost-dev                            # Boost.Math (special functions, tanh_sinh), Boost.Odeint
   libtomlplusplus-dev                     # problem files (TOML)
+  libzip-dev                              # trajectory.npz (NumPy archives) from C++
   libcli11-dev                            # command line
   nlohmann-json3-dev                      # summary.json output
   libgtest-dev libgmock-dev               # unit tests

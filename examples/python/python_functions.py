@@ -51,3 +51,32 @@ print(failed.message.splitlines()[0])          # which function, then the Python
 # [/snippet]
 assert failed.status == "callback-error" and failed.t[-1] <= 5.0 + problem.step
 assert "RuntimeError: the model is not valid beyond t = 5" in failed.message
+
+
+# A force g(x, v, t) as a Python function: feedback that pumps energy into pendulum 1 when it is
+# slow (van der Pol negative damping) while the fractional damping takes it out, with its
+# Jacobians (optional: central differences of g without them).
+# [snippet: force]
+def feedback(x, v, t):                         # g(x, v, t), shape (d,)
+    g = np.zeros_like(x)
+    g[0] = 0.5 * (1 - x[0] ** 2) * v[0]
+    return g
+
+def feedback_jacobian(x, v, t):                # (∂g/∂x, ∂g/∂v), each (d, d)
+    dx, dv = np.zeros((3, 3)), np.zeros((3, 3))
+    dx[0, 0] = -x[0] * v[0]
+    dv[0, 0] = 0.5 * (1 - x[0] ** 2)
+    return dx, dv
+
+driven = fracvi.Problem.from_dict(problem.to_dict(), functions=dict(
+    potential=U, gradient=gradient, hessian=hessian, force=feedback,
+    force_jacobian=feedback_jacobian))
+pumped = fracvi.integrate(driven)              # discrete Lagrange–d'Alembert, as a formula force
+# [/snippet]
+as_formula = fracvi.integrate(formula.with_overrides(
+    'model.force=["0.5*(1 - x1^2)*v1", "0", "0"]'))
+difference = np.max(np.abs(pumped.x - as_formula.x))
+print(f"force function: {pumped.status}, balance error {pumped.max_balance_error:.1e} "
+      f"(the account includes g's work), largest difference from the formula force "
+      f"{difference:.1e}")
+assert pumped.ok and as_formula.ok and difference < 1e-12

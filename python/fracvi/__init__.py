@@ -159,15 +159,32 @@ def _schema():
 
 _SECTIONS, _FLAT_KEYS = _schema()
 
-# U given as Python functions (issue 16 item 2): potential=<function> with gradient= and an
-# optional hessian=, each a function of (x, t) with x a NumPy array of shape (d,). They are not
-# keys of the problem files: the C++ reader gets the placeholder formula "0", and the problem
-# records the label "python:module:name, module:name[, module:name]" (callables.hpp).
-_FUNCTION_KEYS = ("gradient", "hessian")
+# U and the force given as Python functions (issue 16 item 2): potential=<function> with
+# gradient= and an optional hessian=, each a function of (x, t), and force=<function> with an
+# optional force_jacobian=, functions of (x, v, t); x and v NumPy arrays of shape (d,). They are
+# not keys of the problem files: the C++ reader gets the placeholders potential = "0" and
+# force = [], and the problem records the labels "python:module:name, module:name[, ...]"
+# (callables.hpp). A problem keeps them as a dict {key: function} (hessian, force_jacobian may be
+# None).
 _PYTHON_PREFIX = "python:"
+_FUNCTION_GROUPS = {
+    # first key: the problem-file field that holds the label; then (key, required, rule)
+    "potential": (("potential", True, "U(x, t) -> float"),
+                  ("gradient", True, "∇U(x, t) -> array of shape (d,)"),
+                  ("hessian", False, "∇²U(x, t) -> (d, d) array or scipy.sparse matrix")),
+    "force": (("force", True, "g(x, v, t) -> array of shape (d,)"),
+              ("force_jacobian", False, "J(x, v, t) -> the pair (∂g/∂x, ∂g/∂v), (d, d) "
+                                        "arrays or scipy.sparse matrices")),
+}
+_FUNCTION_KEYS = tuple(key for group in _FUNCTION_GROUPS.values() for key, _, _ in group)
+_EXTRA_FUNCTION_KEYS = tuple(k for k in _FUNCTION_KEYS if k not in _FUNCTION_GROUPS)
+_PLACEHOLDERS = {"potential": "0", "force": []}
 _FUNCTIONS_RULE = ("U as Python functions: potential=U(x, t) -> float, gradient=g(x, t) -> array "
                    "of shape (d,), and optionally hessian=H(x, t) -> (d, d) array or "
-                   "scipy.sparse matrix (without it, central differences of the gradient)")
+                   "scipy.sparse matrix (without it, central differences of the gradient); the "
+                   "force as force=g(x, v, t) -> array of shape (d,), and optionally "
+                   "force_jacobian=J(x, v, t) -> (∂g/∂x, ∂g/∂v) (without it, central "
+                   "differences of g)")
 
 
 def _function_name(function):
@@ -176,85 +193,120 @@ def _function_name(function):
     return f"{module}:{qualname}"
 
 
-def _import_functions(label, source):
-    """The functions a "python:module:name, ..." label names, imported again."""
+def _function_label(functions, group):
+    """The label a problem records for the functions of `group`: "python:module:name, ..."."""
+    return _PYTHON_PREFIX + ", ".join(_function_name(functions[key])
+                                      for key, _, _ in _FUNCTION_GROUPS[group]
+                                      if functions.get(key) is not None)
+
+
+def _label_of(value):
+    """The "python:..." label a field holds (a string, or for the force a list of one), or None."""
+    if isinstance(value, (list, tuple)) and len(value) == 1:
+        value = value[0]
+    if isinstance(value, str) and value.startswith(_PYTHON_PREFIX):
+        return value
+    return None
+
+
+def _import_functions(label, group, source):
+    """The functions of `group` a "python:module:name, ..." label names, imported again."""
     import importlib
+    keys = _FUNCTION_GROUPS[group]
+    required = sum(1 for _, needed, _ in keys if needed)
     names = [n.strip() for n in label[len(_PYTHON_PREFIX):].split(",")]
-    if len(names) not in (2, 3) or not all(":" in n for n in names):
-        raise ProblemError(f'{source}: model.potential = "{label}" is not the label of Python '
-                           f'potential functions ("python:module:name, module:name[, '
-                           f'module:name]": U, its gradient and optionally its Hessian)')
-    functions = []
-    for name in names:
+    if not required <= len(names) <= len(keys) or not all(":" in n for n in names):
+        what = ", ".join(key for key, _, _ in keys)
+        raise ProblemError(f'{source}: model.{group} = "{label}" is not the label of Python '
+                           f'{group} functions ("python:module:name, ...": {what}, the last '
+                           f'{len(keys) - required} optional)')
+    functions = {}
+    for (key, _, _), name in zip(keys, names):
         module, _, qualname = name.partition(":")
         try:
             function = importlib.import_module(module)
             for part in qualname.split("."):
                 function = getattr(function, part)
         except (ImportError, AttributeError) as error:
+            given = ", ".join(f"{k}={k[0].upper()}" for k, _, _ in keys)
             raise ProblemError(
-                f'{source}: model.potential = "{label}" names the Python function {name}, which '
+                f'{source}: model.{group} = "{label}" names the Python function {name}, which '
                 f'cannot be imported here ({error}; a lambda, a local function or one of '
-                f'__main__ cannot be): pass the functions again, functions=dict(potential=U, '
-                f'gradient=g, hessian=H) to Problem.from_dict, Problem.from_toml or '
-                f'fracvi.load') from None
-        functions.append(function)
-    return tuple(functions) + (None,) * (3 - len(functions))
+                f'__main__ cannot be): pass the functions again, functions=dict({given}) to '
+                f'Problem.from_dict, Problem.from_toml or fracvi.load') from None
+        functions[key] = function
+    return functions
 
 
 def _as_functions(functions, source):
-    """functions=dict(potential=U, gradient=g[, hessian=H]) as the tuple (U, g, H), or None."""
+    """functions=dict(potential=U, gradient=g, ..., force=f, ...) checked, or None."""
     if functions is None:
         return None
-    if not isinstance(functions, Mapping) or set(functions) - {"potential", "gradient", "hessian"}:
-        raise TypeError(f"{source}: functions = {functions!r} must be a dict with the keys "
-                        f"potential, gradient and optionally hessian ({_FUNCTIONS_RULE})")
-    return (functions.get("potential"), functions.get("gradient"), functions.get("hessian"))
+    if not isinstance(functions, Mapping) or set(functions) - set(_FUNCTION_KEYS):
+        raise TypeError(f"{source}: functions = {functions!r} must be a dict with keys among "
+                        f"{', '.join(_FUNCTION_KEYS)} ({_FUNCTIONS_RULE})")
+    return dict(functions)
 
 
 def _take_functions(document, source, functions=None):
-    """(document for the C++ reader, functions or None): U as Python functions — model.potential
-    a callable with model.gradient (and model.hessian), the label a run from Python recorded
-    (imported again), or `functions` (U, g, H) given by the caller, which win — is taken out of
-    [model] and replaced by the placeholder formula "0"."""
+    """(document for the C++ reader, functions or None): U or the force as Python functions —
+    model.potential (model.force) a callable with model.gradient, ... ; the label a run from
+    Python recorded (imported again); or `functions` given by the caller, which win — are taken
+    out of [model] and replaced by the placeholders (potential "0", force [])."""
     model = document.get("model") if isinstance(document, Mapping) else None
     if not isinstance(model, Mapping):
-        if functions is not None:
+        if functions:
             raise ProblemError(f"{source}: functions= given, but the problem has no [model]")
         return document, None
     model = dict(model)
-    potential = model.get("potential")
-    given = {key: model.pop(key) for key in _FUNCTION_KEYS if key in model}
-    if functions is None:
-        if callable(potential):
-            functions = (potential, given.get("gradient"), given.get("hessian"))
-        elif isinstance(potential, str) and potential.startswith(_PYTHON_PREFIX) and not given:
-            functions = _import_functions(potential, source)
+    given = {key: model.pop(key) for key in _EXTRA_FUNCTION_KEYS if key in model}
+    supplied = functions or {}
+    taken = {}
+    for group, keys in _FUNCTION_GROUPS.items():
+        names = [key for key, _, _ in keys]
+        value = model.get(group)
+        if any(key in supplied for key in names):
+            found = {key: supplied.get(key) for key in names}
+        elif callable(value):
+            found = {group: value, **{key: given.get(key) for key in names[1:]}}
+        elif _label_of(value) is not None and not any(key in given for key in names[1:]):
+            found = _import_functions(_label_of(value), group, source)
         else:
-            for key, value in given.items():
-                raise ProblemError(f"{source}: model.{key} = {value!r} goes with a Python "
-                                   f"potential function (potential=<function>); a formula "
-                                   f"potential has exact derivatives of its own")
-            return document, None
-    value, gradient, hessian = functions
-    for key, function, rule in (("potential", value, "U(x, t) -> float"),
-                                ("gradient", gradient, "∇U(x, t) -> array of shape (d,)")):
-        if not callable(function):
-            raise ProblemError(f"{source}: model.{key} = {function!r} is not a function: "
-                               f"{rule} is required ({_FUNCTIONS_RULE})")
-    if hessian is not None and not callable(hessian):
-        raise ProblemError(f"{source}: model.hessian = {hessian!r} is not a function or None "
-                           f"({_FUNCTIONS_RULE})")
-    model["potential"] = "0"
-    return dict(document, model=model), functions
+            for key in names[1:]:
+                if key in given:
+                    raise ProblemError(
+                        f"{source}: model.{key} = {given[key]!r} goes with a Python {group} "
+                        f"function ({group}=<function>); formulas have exact derivatives of "
+                        f"their own")
+            continue
+        for key, required, rule in keys:
+            function = found.get(key)
+            if required and not callable(function):
+                raise ProblemError(f"{source}: model.{key} = {function!r} is not a function: "
+                                   f"{rule} is required ({_FUNCTIONS_RULE})")
+            if not required and function is not None and not callable(function):
+                raise ProblemError(f"{source}: model.{key} = {function!r} is not a function or "
+                                   f"None: {rule} ({_FUNCTIONS_RULE})")
+            taken[key] = function
+        model[group] = _PLACEHOLDERS[group]
+    if not taken:
+        return document, None
+    return dict(document, model=model), taken
 
 
 def _with_functions(spec, functions):
-    """The native problem with U as Python functions (checked once at (x(t0), t0))."""
-    if functions is None:
+    """The native problem with U and/or the force as Python functions (each checked once at the
+    initial state)."""
+    if not functions:
         return spec
-    label = _PYTHON_PREFIX + ", ".join(_function_name(f) for f in functions if f is not None)
-    return _fracvi.with_python_potential(spec, label, *functions)
+    if "potential" in functions:
+        spec = _fracvi.with_python_potential(
+            spec, _function_label(functions, "potential"), functions["potential"],
+            functions["gradient"], functions.get("hessian"))
+    if "force" in functions:
+        spec = _fracvi.with_python_force(spec, _function_label(functions, "force"),
+                                         functions["force"], functions.get("force_jacobian"))
+    return spec
 
 
 class Problem:
@@ -283,6 +335,12 @@ class Problem:
     records them as "python:module:name, ..."; to_dict, pickling and fracvi.load import them
     again by that name (a lambda or a function of __main__ cannot be: pass functions= then).
 
+    The force may be a Python function too: Problem(force=g, force_jacobian=J, ...) with
+    g(x, v, t) -> array of shape (d,), a non-conservative force like a `force` formula in x and v
+    (docs/theory/forces.md), and J(x, v, t) -> (∂g/∂x, ∂g/∂v), (d, d) arrays or scipy.sparse
+    matrices (optional: without it, central differences of g). Schemes without discrete
+    Lagrange–d'Alembert forces refuse it, as they refuse a formula in x or v.
+
     Invalid input raises ProblemError (a ValueError) with the message `fracvi run` prints.
     Integers must be Python ints where the schema wants integers (time.steps = 100, not 100.0).
     """
@@ -291,7 +349,7 @@ class Problem:
 
     def __init__(self, *, source="<keywords>", overrides=(), **keywords):
         document = {}
-        for key in _FUNCTION_KEYS:  # gradient=, hessian= (Python functions) belong to [model]
+        for key in _EXTRA_FUNCTION_KEYS:  # gradient=, hessian=, force_jacobian= (functions)
             if key in keywords:
                 model = keywords.setdefault("model", {})
                 if isinstance(model, Mapping):
@@ -329,8 +387,9 @@ class Problem:
     def from_dict(cls, document, *, source="<dict>", overrides=(), functions=None):
         """A problem from the nested dict of a problem file: {"name": ..., "model": {...},
         "initial": {...}, "time": {...}, "method": {...}, "output": {...}}. functions=
-        dict(potential=U, gradient=g, hessian=H) gives U as Python functions (see the class),
-        also in place of the "python:..." label a problem with such functions records."""
+        dict(potential=U, gradient=g, hessian=H) gives U as Python functions, dict(force=f,
+        force_jacobian=J) the force (see the class), also in place of the "python:..." labels a
+        problem with such functions records."""
         document, functions = _take_functions(
             document, source, _as_functions(functions, "Problem.from_dict"))
         spec = _fracvi.parse_dict(_plain(document), source,
@@ -379,14 +438,17 @@ class Problem:
 
     def _rebuild(self, document, overrides=()):
         """Problem.from_dict(document) with this problem's source and Python functions."""
-        functions = self._functions
-        if functions is not None and any(a.split("=", 1)[0].strip() == "model.potential"
-                                         for a in overrides):
-            functions = None  # an override gives U as a formula instead
-            document = dict(document, model=dict(document["model"], potential="0"))
+        functions = dict(self._functions or {})
+        for group, keys in _FUNCTION_GROUPS.items():
+            if group in functions and any(a.split("=", 1)[0].strip() == f"model.{group}"
+                                          for a in overrides):
+                # an override gives U (the force) as formulas instead
+                for key, _, _ in keys:
+                    functions.pop(key, None)
+                document = dict(document, model=dict(document["model"],
+                                                     **{group: _PLACEHOLDERS[group]}))
         return Problem.from_dict(document, source=self.source, overrides=overrides,
-                                 functions=None if functions is None else
-                                 dict(zip(("potential", "gradient", "hessian"), functions)))
+                                 functions=functions or None)
 
     def with_overrides(self, *overrides):
         """A copy with "section.key=value" assignments applied (like `fracvi run --set`): what
@@ -440,16 +502,24 @@ class Problem:
     alpha = property(lambda self: self._spec.alpha, doc="Lagrangian order α ∈ [0, 1]")
     damping_order = property(lambda self: 2.0 * self._spec.alpha, doc="2α")
     convention = property(lambda self: self._spec.convention)
-    potential = property(lambda self: self._spec.potential if self._functions is None else
-                         self._functions[0],
+    potential = property(lambda self: self._function("potential", self._spec.potential),
                          doc="U(x1..xd, t): the formula, or the Python function U(x, t)")
-    gradient = property(lambda self: None if self._functions is None else self._functions[1],
+    gradient = property(lambda self: self._function("gradient"),
                         doc="the Python function ∇U(x, t) of a potential given as functions, "
                             "else None (a formula's derivatives are exact and internal)")
-    hessian = property(lambda self: None if self._functions is None else self._functions[2],
+    hessian = property(lambda self: self._function("hessian"),
                        doc="the Python function ∇²U(x, t), or None")
-    force = property(lambda self: list(self._spec.force),
-                     doc="f(t) or g(x, v, t): [] or d formulas in t, x1..xd, v1..vd")
+    force = property(lambda self: self._function("force", list(self._spec.force)),
+                     doc="f(t) or g(x, v, t): [] or d formulas in t, x1..xd, v1..vd, or the "
+                         "Python function g(x, v, t)")
+    force_jacobian = property(lambda self: self._function("force_jacobian"),
+                              doc="the Python function (∂g/∂x, ∂g/∂v)(x, v, t) of a force given "
+                                  "as a function, or None")
+
+    def _function(self, key, otherwise=None):
+        if self._functions is not None and key in self._functions:
+            return self._functions[key]
+        return otherwise
     lagrangian = property(lambda self: self._spec.lagrangian,
                           doc="a general L(t, x, y, xdot, ydot, dx, dy), or '' (mechanical model)")
     position = property(lambda self: self._spec.position,
@@ -485,6 +555,8 @@ class Problem:
     threads = property(lambda self: self._spec.threads, doc="method.threads (0: all cores)")
     every = property(lambda self: self._spec.every,
                      doc="output.every: the solution stores every n-th state and the last")
+    format = property(lambda self: self._spec.format,
+                      doc='output.format: "csv" (trajectory.csv) or "npz" (trajectory.npz)')
 
 
 def _names_functions(toml, is_path):
@@ -496,12 +568,12 @@ def _names_functions(toml, is_path):
         except OSError:
             return False  # the native reader reports it
     import re
-    return re.search(r"""potential\s*=\s*["']""" + _PYTHON_PREFIX, toml) is not None
+    return re.search(r"""(potential|force)\s*=\s*\[?\s*["']""" + _PYTHON_PREFIX,
+                     toml) is not None
 
 
 def _unpickle_problem(document, source, functions=None):
-    return Problem.from_dict(document, source=source, functions=None if functions is None else
-                             dict(zip(("potential", "gradient", "hessian"), functions)))
+    return Problem.from_dict(document, source=source, functions=functions)
 
 
 def _as_problem(problem):
@@ -631,10 +703,10 @@ class Solution:
         the resolved problem) as a dict; non-finite numbers are None as in the file."""
         return self._run.summary()
 
-    def write(self, directory, *, plot=False, format="csv"):
-        """Writes trajectory.csv (format="npz": trajectory.npz), summary.json and problem.toml
-        into `directory` (created if needed), as `fracvi run --out directory` does; with
-        plot=True also its PNG plots. See fracvi.write; fracvi.load reads it back."""
+    def write(self, directory, *, plot=False, format=None):
+        """Writes trajectory.csv (format="npz", or output.format = "npz": trajectory.npz),
+        summary.json and problem.toml into `directory` (created if needed), as `fracvi run --out
+        directory` does; with plot=True also its PNG plots. See fracvi.write; fracvi.load reads it back."""
         return write(self, self.problem, directory, plot=plot, format=format)
 
     def plot(self, directory=None, *, show=None):
@@ -752,7 +824,9 @@ def _with_mirror(fields, mirror):
 
 
 def _unpickle_solution(problem, summary, *arrays):
-    return Solution(_fracvi.restore_run(problem._spec, summary, *arrays, "<pickle>"), problem)
+    *columns, output = arrays if len(arrays) == 7 else (*arrays, None)
+    return Solution(_fracvi.restore_run(problem._spec, summary, *columns, "<pickle>", output),
+                    problem)
 
 
 def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=None, diagnostics=True,
@@ -1173,7 +1247,7 @@ def solve_bvp(problem, *, sum="extended", solver="auto", tolerance=None, raise_o
 TRAJECTORY_FORMATS = ("csv", "npz")
 
 
-def write(solution, problem=None, directory=None, *, plot=False, format="csv"):
+def write(solution, problem=None, directory=None, *, plot=False, format=None):
     """Writes the files of `fracvi run` — trajectory.csv, summary.json, problem.toml — into
     `directory` (created if needed); with plot=True also its plots (fracvi.plot).
 
@@ -1184,10 +1258,11 @@ def write(solution, problem=None, directory=None, *, plot=False, format="csv"):
     to itself. format="npz" writes trajectory.npz instead (NumPy's uncompressed archive of the
     arrays t, step, x, v, energy, dissipated, balance as stored: smaller, and about 30 times
     faster to write and read for large systems); either way an earlier run's trajectory in the
-    other format is removed, and summary.json is written last. fracvi.load reads both back.
-    Returns the directory.
+    other format is removed, and summary.json is written last. format=None takes the problem's
+    output.format ("csv" unless set; the problem.toml written records the format used).
+    fracvi.load reads both back. Returns the directory.
     """
-    if format not in TRAJECTORY_FORMATS:
+    if format is not None and format not in TRAJECTORY_FORMATS:
         raise ValueError(f"write: format = {format!r} must be one of "
                          f"{', '.join(map(repr, TRAJECTORY_FORMATS))}")
     if directory is None and isinstance(problem, (str, os.PathLike)):
@@ -1198,29 +1273,13 @@ def write(solution, problem=None, directory=None, *, plot=False, format="csv"):
     if problem.dim != solution.dim:
         raise ValueError(f"write: the problem has dimension {problem.dim}, the solution "
                          f"{solution.dim}")
+    if format is not None and format != problem.format:
+        problem = problem.with_overrides(f"output.format={format}")
     directory = os.fspath(directory)
-    trajectory = None if format == "csv" else (lambda d: _write_npz(solution, d))
-    solution._run.write(directory, problem._spec, trajectory)
+    solution._run.write(directory, problem._spec)
     if plot:
         _plotting.plot_run(directory)
     return directory
-
-
-def _write_npz(solution, directory):
-    """trajectory.npz into `directory`, through a temporary renamed at the end (as the CSV)."""
-    path = os.path.join(directory, "trajectory.npz")
-    temporary = f"{path}.tmp.{os.getpid()}"
-    try:
-        with open(temporary, "wb") as f:
-            np.savez(f, **{name: getattr(solution, name) for name in _TRAJECTORY_ARRAYS})
-        os.replace(temporary, path)
-    except BaseException:
-        if os.path.exists(temporary):
-            os.remove(temporary)
-        raise
-
-
-_TRAJECTORY_ARRAYS = ("t", "step", "x", "v", "energy", "dissipated", "balance")
 
 
 def load(directory, *, functions=None):
@@ -1231,13 +1290,15 @@ def load(directory, *, functions=None):
 
     The loaded solution equals the one written, bit for bit (the CSV's 17 significant digits
     read back to the same doubles; the step indices, which the CSV has no column for, follow
-    from summary.json's steps and save_every). Only the damping memory's size (not in the files)
-    is not restored. A directory without summary.json (a run still going, or stopped before it
+    from summary.json's steps and save_every), with the states at output.times (times.csv: t_eval,
+    x_eval, v_eval) and the event crossings (summary.json). Only the damping memory's size (not
+    in the files) is not restored. A directory without summary.json (a run still going, or stopped before it
     wrote one), a trajectory that does not match the summary or the problem, or the output of
     `fracvi bvp` or `fracvi sweep` raises an error naming the file and what is wrong.
 
-    A run whose potential was given as Python functions records their names: they are imported
-    again, or given as functions=dict(potential=U, gradient=g, hessian=H).
+    A run whose potential or force was given as Python functions records their names: they are
+    imported again, or given as functions=dict(potential=U, gradient=g, hessian=H, force=f,
+    force_jacobian=J) (the keys the problem needs).
     """
     directory = os.fspath(directory)
     if not os.path.isdir(directory):
@@ -1267,12 +1328,29 @@ def load(directory, *, functions=None):
     arrays = _plotting.load_trajectory(directory)
     trajectory = _plotting.trajectory_file(directory)
     run = _fracvi.restore_run(problem._spec, summary,
-                              *(arrays[name] for name in _plotting.ARRAYS), trajectory)
+                              *(arrays[name] for name in _plotting.ARRAYS), trajectory,
+                              _read_times(directory, summary, problem.dim))
     if "step" in arrays and not np.array_equal(arrays["step"], run.step):
         raise ValueError(f"{trajectory}: step = {arrays['step'].tolist()[:8]}… differs from the "
                          f"rows summary.json's steps = {run.steps} and save_every = "
                          f"{run.save_every} make")
     return Solution(run, problem)
+
+
+def _read_times(directory, summary, dim):
+    """(t, x, v) of times.csv (the states at output.times), or None when the run had none."""
+    if not summary.get("output_times"):
+        return None
+    path = os.path.join(directory, "times.csv")
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"load: {path} does not exist, and summary.json records "
+                                f"output_times = {summary['output_times']} states at "
+                                f"output.times (written to times.csv)")
+    table = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    if table.shape[1] != 1 + 2 * dim:
+        raise ValueError(f"{path}: {table.shape[1]} columns; t, x1..xd, v1..vd make "
+                         f"{1 + 2 * dim} for the problem's dim = {dim}")
+    return table[:, 0].copy(), table[:, 1:1 + dim].copy(), table[:, 1 + dim:].copy()
 
 
 def plot(solution, directory=None, *, show=None):
@@ -1334,10 +1412,11 @@ def sweep(problem, parameters, *, jobs=1, combine="grid", save="final", out=None
     Returns a SweepResult: column name -> NumPy array in case order, and .parameters."""
     if isinstance(problem, Problem):
         if problem._functions is not None:
-            raise ProblemError(f"sweep: {problem.source}: the potential is given as Python "
+            what = " and ".join(g for g in _FUNCTION_GROUPS if g in problem._functions)
+            raise ProblemError(f"sweep: {problem.source}: the {what} is given as Python "
                                f"functions, and a sweep's cases are read from the problem's "
-                               f"dict like problem files, which cannot hold functions: give U "
-                               f"as a formula, or loop over fracvi.integrate "
+                               f"dict like problem files, which cannot hold functions: give "
+                               f"formulas, or loop over fracvi.integrate "
                                f"(problem.with_overrides(...), multiprocessing.Pool.map)")
         document = {"problem": problem.to_dict()}
     elif isinstance(problem, Mapping):

@@ -367,12 +367,24 @@ PreparedRun prepare_python_run(const ProblemSpec& spec, const RunOptions& run,
   return prepared;
 }
 
-/// A KeyboardInterrupt or SystemExit raised inside a Python potential function during the run
+/// Whether the model's potential or force are Python functions (callables.hpp).
+bool calls_python(const MechanicalModel& model) {
+  return python::is_python(model.potential) || python::is_python(model.state_force);
+}
+
+/// The KeyboardInterrupt or SystemExit one of the model's Python functions raised, or None;
+/// cleared (both are taken, the potential's kept if both raised).
+py::object take_raised_interrupt(const MechanicalModel& model) {
+  py::object potential = python::take_raised_interrupt(model.potential);
+  py::object force = python::take_raised_interrupt(model.state_force);
+  return potential.is_none() ? force : potential;
+}
+
+/// A KeyboardInterrupt or SystemExit raised inside a Python model function during the run
 /// (callables.hpp) becomes the run's interrupt, as a Ctrl-C between steps would: `slot` keeps the
 /// first, and the failed step's status "callback-error" becomes "interrupted".
-void absorb_raised_interrupt(const std::shared_ptr<const Potential>& potential, Solution& solution,
-                             py::object& slot) {
-  py::object raised = python::take_raised_interrupt(potential);
+void absorb_raised_interrupt(const MechanicalModel& model, Solution& solution, py::object& slot) {
+  py::object raised = take_raised_interrupt(model);
   if (raised.is_none()) return;
   if (slot.is_none()) slot = raised;
   if (solution.status == Status::kCallbackError) {
@@ -395,7 +407,7 @@ std::unique_ptr<Run> run_problem(const ProblemSpec& spec, const RunOptions& run_
   // keeps it then (taking it back at each call costs more than the call, measured in
   // bench/python_functions_bench.py).
   std::optional<py::gil_scoped_release> release;
-  if (!python::is_python_potential(problem.model.potential)) release.emplace();
+  if (!calls_python(problem.model)) release.emplace();
   if (options.tolerance > 0.0) {
     // method.tolerance: N doubled from time.steps until the error estimate meets it.
     run->solution = integrate_to_tolerance(problem, prepared.method, options);
@@ -405,7 +417,7 @@ std::unique_ptr<Run> run_problem(const ProblemSpec& spec, const RunOptions& run_
     estimate_error(problem, prepared.method, options, run->solution);
   }
   release.reset();
-  absorb_raised_interrupt(problem.model.potential, run->solution, run->interrupt);
+  absorb_raised_interrupt(problem.model, run->solution, run->interrupt);
   return run;
 }
 
@@ -450,18 +462,42 @@ struct RowsReader {
 };
 
 /// A Run from what summary.json and the trajectory hold (fracvi.load, and unpickling): the
-/// summary's fields through read_summary, the step indices from steps and save_every
-/// (stored_steps), the arrays checked against them and against the problem's dimension. `what`
-/// names the source in messages.
+/// summary's fields (and event crossings) through read_summary, the step indices from steps and
+/// save_every (stored_steps), the arrays checked against them and against the problem's
+/// dimension; `output` None or the states at output.times (t, x, v: times.csv), as many as the
+/// summary's output_times. `what` names the source in messages.
 py::object restore_run(const ProblemSpec& spec, py::handle summary, const InputArray& t,
                        const InputArray& x, const InputArray& v, const InputArray& energy,
                        const InputArray& dissipated, const InputArray& balance,
-                       const std::string& what) {
+                       const std::string& what, const py::object& output) {
   Solution s;
+  const nlohmann::json json = from_python(summary, "", what);
   try {
-    read_summary(from_python(summary, "", what), s, what);
+    read_summary(json, s, what);
   } catch (const OutputError& e) {
     throw py::value_error(e.what());
+  }
+  if (s.events.x.size() != s.events.size() * static_cast<std::size_t>(spec.dim) ||
+      s.events.v.size() != s.events.x.size()) {
+    throw py::value_error(what +
+                          ": \"events\" has crossings whose position or velocity do not "
+                          "have the problem's dim = " +
+                          std::to_string(spec.dim) + " values");
+  }
+  const auto output_times =
+      json.contains("output_times") && json["output_times"].is_number_integer()
+          ? std::max<py::ssize_t>(0, json["output_times"].get<py::ssize_t>())
+          : py::ssize_t{0};
+  if (!output.is_none() && output_times > 0) {
+    const auto arrays = output.cast<py::tuple>();
+    const RowsReader read_output{output_times, spec.dim, what,
+                                 "the summary's output_times = " + std::to_string(output_times)};
+    s.output_t = read_output.vector(arrays[0].cast<InputArray>(), "output t");
+    s.output_x = read_output.matrix(arrays[1].cast<InputArray>(), "output x");
+    s.output_v = read_output.matrix(arrays[2].cast<InputArray>(), "output v");
+  } else {
+    s.output_x.resize(0, spec.dim);
+    s.output_v.resize(0, spec.dim);
   }
   s.step = stored_steps(s.steps_done, s.save_every);
   const RowsReader read{static_cast<py::ssize_t>(s.step.size()), spec.dim, what,
@@ -641,7 +677,7 @@ class Stepping {
   /// status(), after keeping in interrupt() what a Python model function raised to interrupt
   /// (KeyboardInterrupt, SystemExit): the step that called it ended the run ("callback-error").
   std::string raised_status() {
-    py::object raised = python::take_raised_interrupt(prepared_.problem.model.potential);
+    py::object raised = take_raised_interrupt(prepared_.problem.model);
     if (!raised.is_none() && interrupt_.is_none()) interrupt_ = raised;
     return status();
   }
@@ -943,7 +979,7 @@ Curve python_curve(py::handle c, Eigen::Index d, const std::string& name) {
 }
 
 /// `spec` with U given as Python functions (callables.hpp) in place of its formula, labelled
-/// `label` (kPythonPotentialPrefix...). The functions are called once at (x(t0), t0), so that a
+/// `label` (kPythonFunctionPrefix...). The functions are called once at (x(t0), t0), so that a
 /// function that fails or returns the wrong shape is reported now, naming the field and the rule,
 /// and not at the first step.
 ProblemSpec with_python_potential(const ProblemSpec& spec, const std::string& label,
@@ -977,6 +1013,34 @@ ProblemSpec with_python_potential(const ProblemSpec& spec, const std::string& la
   return s;
 }
 
+/// `spec` with the force given as a Python function g(x, v, t) (callables.hpp) in place of its
+/// formulas, labelled {label}; checked once at (x(t0), v(t0), t0) as with_python_potential does.
+ProblemSpec with_python_force(const ProblemSpec& spec, const std::string& label, py::object force,
+                              py::object jacobian) {
+  if (!spec.lagrangian.empty()) {
+    throw ProblemError(spec.source +
+                       ": force=<function> and model.lagrangian are both given: a general "
+                       "Lagrangian has no non-conservative force (g(x, v, t) has no Lagrangian)");
+  }
+  ProblemSpec s = spec;
+  s.force = {label};
+  s.force_object = python::make_python_force(s.dim, std::move(force), std::move(jacobian));
+  if (s.position.size() != s.dim) return s;  // a boundary value problem without [initial]
+  Eigen::VectorXd g(s.dim);
+  Eigen::MatrixXd dx(s.dim, s.dim), dv(s.dim, s.dim);
+  try {
+    s.force_object->jacobians(s.position, s.velocity, s.start, g, dx, dv);
+  } catch (const std::runtime_error& e) {
+    py::object raised = python::take_raised_interrupt(s.force_object);
+    if (!raised.is_none()) {  // Ctrl-C inside the function: raise it, not a ProblemError
+      PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(raised.ptr())), raised.ptr());
+      throw py::error_already_set();
+    }
+    throw ProblemError(s.source + ": at the initial state (x(t0), v(t0), t0 = " +
+                       repr_text(py::float_(s.start)) + "): " + e.what());
+  }
+  return s;
+}
 }  // namespace
 
 void bind(py::module_& m) {
@@ -996,6 +1060,7 @@ void bind(py::module_& m) {
       .def_readonly("convention", &ProblemSpec::convention)
       .def_readonly("potential", &ProblemSpec::potential)
       .def_readonly("force", &ProblemSpec::force)
+      .def_readonly("format", &ProblemSpec::format)
       .def_readonly("lagrangian", &ProblemSpec::lagrangian)
       .def_property_readonly("position",
                              [](const ProblemSpec& s) { return vector_copy(s.position); })
@@ -1050,6 +1115,8 @@ void bind(py::module_& m) {
   m.def("default_problem_toml", [] { return std::string(default_problem_toml()); });
   m.def("with_python_potential", &with_python_potential, py::arg("spec"), py::arg("label"),
         py::arg("value"), py::arg("gradient"), py::arg("hessian"));
+  m.def("with_python_force", &with_python_force, py::arg("spec"), py::arg("label"),
+        py::arg("force"), py::arg("jacobian"));
 
   // --- solutions ---------------------------------------------------------------------------
   py::class_<Run>(m, "Run", "A Solution and the problem it solves (C++ fracvi::Solution).")
@@ -1180,29 +1247,24 @@ void bind(py::module_& m) {
              // the columns of trajectory.csv, as views (pickle copies them).
              const Run& r = self.cast<const Run&>();
              const Solution& s = r.solution;
-             return py::make_tuple(to_python(make_summary(r.spec, s)),
-                                   view(self, s.t.data(), s.t.size(), 0),
-                                   view(self, s.x.data(), s.x.rows(), s.x.cols()),
-                                   view(self, s.v.data(), s.v.rows(), s.v.cols()),
-                                   view(self, s.energy.data(), s.energy.size(), 0),
-                                   view(self, s.dissipated.data(), s.dissipated.size(), 0),
-                                   view(self, s.balance.data(), s.balance.size(), 0));
+             return py::make_tuple(
+                 to_python(make_summary(r.spec, s)), view(self, s.t.data(), s.t.size(), 0),
+                 view(self, s.x.data(), s.x.rows(), s.x.cols()),
+                 view(self, s.v.data(), s.v.rows(), s.v.cols()),
+                 view(self, s.energy.data(), s.energy.size(), 0),
+                 view(self, s.dissipated.data(), s.dissipated.size(), 0),
+                 view(self, s.balance.data(), s.balance.size(), 0),
+                 py::make_tuple(
+                     view(self, s.output_t.data(), s.output_t.size(), 0),
+                     view(self, s.output_x.data(), s.output_x.rows(), s.output_x.cols()),
+                     view(self, s.output_v.data(), s.output_v.rows(), s.output_v.cols())));
            })
       .def(
           "write",
-          [](const Run& r, const std::string& directory, const ProblemSpec* spec,
-             const py::object& trajectory) {
-            // trajectory(directory), if not None, writes the trajectory in place of the CSV
-            // (fracvi.write(..., format="npz")); what it raises propagates.
-            TrajectoryWriter writer;
-            if (!trajectory.is_none()) {
-              writer = [&trajectory](const std::filesystem::path& dir) {
-                trajectory(dir.string());
-              };
-            }
-            write_run_output(directory, spec ? *spec : r.spec, r.solution, writer);
+          [](const Run& r, const std::string& directory, const ProblemSpec* spec) {
+            write_run_output(directory, spec ? *spec : r.spec, r.solution);
           },
-          py::arg("directory"), py::arg("spec") = nullptr, py::arg("trajectory") = py::none());
+          py::arg("directory"), py::arg("spec") = nullptr);
 
   // fracvi.sweep: the cases of `fracvi sweep` on local threads; returns (columns, rows) of
   // results.csv in case order, each row its fields as text (the Python side makes NumPy columns).
@@ -1269,7 +1331,7 @@ void bind(py::module_& m) {
   m.def("integrate", &run_problem, py::arg("spec"), py::arg("options"));
   m.def("restore_run", &restore_run, py::arg("spec"), py::arg("summary"), py::arg("t"),
         py::arg("x"), py::arg("v"), py::arg("energy"), py::arg("dissipated"), py::arg("balance"),
-        py::arg("what"));
+        py::arg("what"), py::arg("output") = py::none());
 
   py::class_<Stepping>(m, "Stepping", "A C++ Integrator stepped from Python (fracvi.Integrator).")
       .def(py::init<const ProblemSpec&, const RunOptions&>(), py::arg("spec"), py::arg("options"))

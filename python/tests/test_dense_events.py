@@ -218,6 +218,43 @@ terminal = true
                                                       *solution.v_eval[0]]
 
 
+def test_pickle_and_load_keep_t_eval_and_the_events(tmp_path, cli):
+    import pickle
+
+    def down(t, x, v):
+        return x[0]
+    down.direction = -1
+    solution = fracvi.integrate(oscillator(400), t_eval=T_EVAL,
+                                events=["v1", down, {"name": "turn", "g": "v1"}])
+    assert len(solution.events) >= 5 and len(solution.t_eval) == len(T_EVAL)
+
+    def same(a, b):
+        assert np.array_equal(a.t_eval, b.t_eval) and np.array_equal(a.x_eval, b.x_eval)
+        assert np.array_equal(a.v_eval, b.v_eval)
+        assert [(e.name, e.t, e.direction, e.step) for e in a.events] == \
+            [(e.name, e.t, e.direction, e.step) for e in b.events]
+        for e, f in zip(a.events, b.events):
+            assert np.array_equal(e.x, f.x) and np.array_equal(e.v, f.v)
+        assert a.t_events.keys() == b.t_events.keys()
+
+    same(pickle.loads(pickle.dumps(solution)), solution)
+    fracvi.write(solution, solution.problem, tmp_path / "py")
+    same(fracvi.load(tmp_path / "py"), solution)
+    # A problem file's run, read back: times.csv and summary.json's crossings, bit for bit.
+    problem = oscillator(400).to_toml().replace("[output]", "[output]\ntimes = [0.25, 0.5]")
+    problem += '\n[[events]]\nname = "zero"\ng = "x1"\n'
+    (tmp_path / "p.toml").write_text(problem)
+    r = cli("run", tmp_path / "p.toml", "--out", tmp_path / "cli", "--no-plot", "--quiet")
+    assert r.returncode == 0, r.stderr
+    loaded = fracvi.load(tmp_path / "cli")
+    same(loaded, fracvi.integrate(fracvi.Problem.from_toml(str(tmp_path / "p.toml"))))
+    assert list(loaded.t_eval) == [0.25, 0.5] and len(loaded.events) >= 3
+    # A run directory missing its times.csv is an error that says so.
+    (tmp_path / "cli" / "times.csv").unlink()
+    with pytest.raises(FileNotFoundError, match=r"times.csv does not exist.*output_times = 2"):
+        fracvi.load(tmp_path / "cli")
+
+
 def test_the_integrator_takes_the_same_keywords():
     def impact(t, x, v):
         return x[0]

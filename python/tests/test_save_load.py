@@ -20,7 +20,8 @@ FIELDS = ("status", "message", "steps", "newton_iterations", "max_newton_iterati
 TIMINGS = ("wall_time", "setup_time")
 
 
-def assert_same_solution(a, b, *, timings=True):
+def assert_same_solution(a, b, *, timings=True, problem=None):
+    """a equals b bit for bit; a's problem is `problem` (default b's)."""
     for name in ARRAYS:
         x, y = getattr(a, name), getattr(b, name)
         assert x.dtype == y.dtype and x.shape == y.shape, name
@@ -30,8 +31,11 @@ def assert_same_solution(a, b, *, timings=True):
             continue
         x, y = getattr(a, name), getattr(b, name)
         assert x == y or (x != x and y != y), (name, x, y)
-    assert a.problem == b.problem
+    problem = b.problem if problem is None else problem
+    assert a.problem == problem
     sa, sb = a.summary(), b.summary()
+    assert sa.pop("problem") == problem.to_dict()
+    sb.pop("problem")
     if not timings:
         for s in (sa, sb):
             for key in ("wall_seconds", "setup_wall_seconds", "stepping_wall_seconds"):
@@ -68,7 +72,10 @@ def test_write_then_load_is_the_same_solution(runs, tmp_path, name, format):
     files = sorted(f for f in os.listdir(directory) if not f.startswith("."))
     assert files == ["problem.toml", "summary.json", f"trajectory.{format}"]
     loaded = fracvi.load(directory)
-    assert_same_solution(loaded, solution)
+    # problem.toml records the format written (running it again writes the same files).
+    assert loaded.problem.format == format
+    assert_same_solution(loaded, solution,
+                         problem=solution.problem.with_overrides(f"output.format={format}"))
     assert loaded.status == solution.status and loaded.steps == solution.steps
     if name == "every-7":
         assert loaded.step[-1] == 400 and list(loaded.step[:3]) == [0, 7, 14]
@@ -109,6 +116,47 @@ def test_formats_replace_each_other(runs, tmp_path):
     pytest.importorskip("matplotlib")
     paths = fracvi.plot(str(tmp_path), tmp_path / "png")
     assert [os.path.basename(p) for p in paths] == ["trajectory.png", "phase.png", "energy.png"]
+
+
+def test_the_cli_writes_npz_that_numpy_reads(cli, write_file, tmp_path):
+    # output.format = "npz": the C++ writer (libzip, hand-written .npy headers) against NumPy's
+    # reader, and against the CSV of the same run, bit for bit.
+    for text, out in (("", "csv"), ('format = "npz"\n', "npz")):
+        path = write_file(FRACTIONAL + "[output]\nevery = 9\n" + text)
+        r = cli("run", path, "--out", tmp_path / out, "--no-plot", "--quiet")
+        assert r.returncode == 0, r.stderr
+    assert sorted(os.listdir(tmp_path / "npz")) == ["problem.toml", "summary.json",
+                                                     "trajectory.npz"]
+    table = np.loadtxt(tmp_path / "csv" / "trajectory.csv", delimiter=",", skiprows=1, ndmin=2)
+    with np.load(tmp_path / "npz" / "trajectory.npz") as f:
+        assert sorted(f.files) == sorted(ARRAYS)
+        d = f["x"].shape[1]
+        assert f["step"].dtype == np.int64 and f["t"].dtype == np.float64
+        assert f["x"].flags.c_contiguous and f["x"].shape == (len(table), d)
+        for name, column in (("t", table[:, 0]), ("x", table[:, 1:1 + d]),
+                             ("v", table[:, 1 + d:1 + 2 * d]), ("energy", table[:, -3]),
+                             ("dissipated", table[:, -2]), ("balance", table[:, -1])):
+            assert np.array_equal(f[name], column, equal_nan=True), name
+        assert list(f["step"][:3]) == [0, 9, 18]
+    # Each member is stored uncompressed with its data 64-byte aligned, as np.savez writes.
+    import zipfile
+    with zipfile.ZipFile(tmp_path / "npz" / "trajectory.npz") as z:
+        for info in z.infolist():
+            assert info.compress_type == zipfile.ZIP_STORED
+            with z.open(info) as member:
+                assert np.lib.format.read_magic(member) == (1, 0)
+                np.lib.format.read_array_header_1_0(member)
+                assert member.tell() % 64 == 0, info.filename
+    loaded = fracvi.load(tmp_path / "npz")
+    assert_same_solution(loaded, fracvi.load(tmp_path / "csv"), timings=False,
+                         problem=loaded.problem)
+    assert loaded.problem.format == "npz"
+    r = cli("plot", tmp_path / "npz")
+    assert r.returncode == 0, r.stderr
+    bad = write_file(FRACTIONAL + "[output]\nformat = \"hdf5\"\n")
+    r = cli("run", bad, "--out", tmp_path / "bad", "--no-plot", "--quiet")
+    assert r.returncode == 2
+    assert 'output.format = "hdf5" is not one of' in r.stderr
 
 
 def test_cli_plots_an_npz_directory(runs, cli, tmp_path):

@@ -20,19 +20,6 @@ std::string fmt(double v) {
   return buf;
 }
 
-MechanicalModel mechanical_model(const ProblemSpec& spec) {
-  MechanicalModel m;
-  m.mass = spec.mass;
-  m.damping = spec.damping;
-  m.alpha = spec.alpha;
-  m.convention = *parse_convention(spec.convention);
-  m.potential = make_potential(spec);  // the [model.chain] or the formula
-  auto forces = make_expression_forces(spec.dim, spec.force);
-  m.forcing = std::move(forces.forcing);
-  m.state_force = std::move(forces.state_force);  // refused by MechanicalLagrangian
-  return m;
-}
-
 // U(x, t) = L(t, 0, …, 0) − L(t, x, 0, …, 0) for an L of mechanical form: −∂L/∂x and −∂²L/∂x² at
 // (x, y = 0, velocities and fractional derivatives 0); by the form these do not depend on the
 // zeroed arguments.
@@ -78,7 +65,8 @@ class LagrangianPotential final : public Potential {
 std::shared_ptr<const Lagrangian> make_lagrangian(const ProblemSpec& spec) {
   if (!spec.lagrangian.empty())
     return std::make_shared<const ExpressionLagrangian>(spec.dim, spec.lagrangian);
-  const MechanicalModel model = mechanical_model(spec);
+  // A g(x, v, t) has no Lagrangian: MechanicalLagrangian refuses it.
+  const MechanicalModel model = make_mechanical_model(spec);
   const double order = 2.0 * spec.alpha;
   if (model.convention == Convention::kCaputo && order != 0.0 && order != 1.0 &&
       !model.is_undamped()) {

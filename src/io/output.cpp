@@ -1,6 +1,8 @@
 #include "fracvi/io/output.hpp"
 #include "fracvi/core/version.hpp"
+#include "fracvi/io/npz.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <charconv>
@@ -40,17 +42,26 @@ std::shared_ptr<const Potential> make_potential(const ProblemSpec& spec) {
   return std::make_shared<const ExpressionPotential>(spec.dim, spec.potential);
 }
 
+MechanicalModel make_mechanical_model(const ProblemSpec& spec) {
+  MechanicalModel m;
+  m.mass = spec.mass;
+  m.damping = spec.damping;
+  m.alpha = spec.alpha;
+  m.convention = *parse_convention(spec.convention);
+  m.potential = make_potential(spec);
+  if (spec.force_object) {
+    m.state_force = spec.force_object;  // Python callables
+  } else {
+    auto forces = make_expression_forces(spec.dim, spec.force);
+    m.forcing = std::move(forces.forcing);
+    m.state_force = std::move(forces.state_force);
+  }
+  return m;
+}
+
 InitialValueProblem make_initial_value_problem(const ProblemSpec& spec) {
   InitialValueProblem p;
-  p.model.mass = spec.mass;
-  p.model.damping = spec.damping;
-  p.model.alpha = spec.alpha;
-  p.model.convention = *parse_convention(spec.convention);
-  p.model.potential = make_potential(spec);
-  // force formulas in t only: f(t) as always; mentioning x or v: g(x, v, t).
-  auto forces = make_expression_forces(spec.dim, spec.force);
-  p.model.forcing = std::move(forces.forcing);
-  p.model.state_force = std::move(forces.state_force);
+  p.model = make_mechanical_model(spec);
   p.x0 = spec.position;
   p.v0 = spec.velocity;
   p.t0 = spec.start;
@@ -101,11 +112,14 @@ void append_csv_number(std::string& out, double v) {
   out.append(buf, r.ptr);
 }
 
+std::filesystem::path temporary_path(const std::filesystem::path& file) {
+  static std::atomic<unsigned> counter{0};
+  return file.string() + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter++);
+}
+
 void write_file_atomically(const std::filesystem::path& file,
                            const std::function<void(std::ostream&)>& write) {
-  static std::atomic<unsigned> counter{0};
-  const auto tmp = std::filesystem::path(file.string() + ".tmp." + std::to_string(::getpid()) +
-                                         "." + std::to_string(counter++));
+  const auto tmp = temporary_path(file);
   // Nothing is left behind on failure: the temporary is removed before the error propagates.
   const auto fail = [&tmp](const std::string& what) {
     std::error_code ignored;
@@ -424,6 +438,34 @@ void read_summary(const nlohmann::json& summary, Solution& s, const std::string&
     s.wall_time_seconds = r.number(summary, "wall_seconds");
     s.setup_seconds = 0.0;
   }
+  s.events = EventLog{};
+  if (summary.contains("events")) {  // absent in summaries written before events (issue 16)
+    const auto& crossings = r.at(summary, "events");
+    if (!crossings.is_array()) r.fail("events", "is not an array");
+    for (const auto& c : crossings) {
+      const std::string name = r.text(c, "name");
+      const auto known = std::find(s.events.names.begin(), s.events.names.end(), name);
+      s.events.event.push_back(static_cast<std::size_t>(known - s.events.names.begin()));
+      if (known == s.events.names.end()) s.events.names.push_back(name);
+      s.events.t.push_back(r.number(c, "t"));
+      s.events.step.push_back(r.count(c, "step"));
+      const std::string direction = r.text(c, "direction");
+      if (direction != "rising" && direction != "falling")
+        r.fail("events", "direction = \"" + direction + "\" is not rising or falling");
+      s.events.direction.push_back(direction == "rising" ? 1 : -1);
+      for (const char* key : {"position", "velocity"}) {
+        const auto& state = r.at(c, key);
+        if (!state.is_array()) r.fail(std::string("events ") + key, "is not an array");
+        auto& out = std::string_view(key) == "position" ? s.events.x : s.events.v;
+        for (const auto& value : state) {
+          if (!value.is_null() && !value.is_number())
+            r.fail(std::string("events ") + key, "holds " + value.dump() + ", not a number");
+          out.push_back(value.is_null() ? std::numeric_limits<double>::quiet_NaN()
+                                        : value.get<double>());
+        }
+      }
+    }
+  }
   s.method = r.text(summary, "method");
   const auto& order = r.at(summary, "declared_order");
   if (!order.is_number_integer())
@@ -438,17 +480,34 @@ std::vector<std::size_t> stored_steps(std::size_t steps_done, std::size_t save_e
   return steps;
 }
 
-void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec, const Solution& s,
-                      const TrajectoryWriter& trajectory) {
+void write_trajectory_npz(const std::filesystem::path& file, const Solution& s) {
+  const auto rows = static_cast<std::size_t>(s.t.size());
+  const auto d = static_cast<std::size_t>(s.x.cols());
+  const std::vector<std::int64_t> step(s.step.begin(), s.step.end());
+  const std::vector<NpyArray> arrays{
+      {"t", {rows}, s.t.data()},
+      {"step", {step.size()}, nullptr, step.data()},
+      {"x", {rows, d}, s.x.data()},
+      {"v", {rows, d}, s.v.data()},
+      {"energy", {rows}, s.energy.data()},
+      {"dissipated", {rows}, s.dissipated.data()},
+      {"balance", {rows}, s.balance.data()},
+  };
+  write_npz(file, arrays);
+}
+
+void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
+                      const Solution& s) {
   prepare_output_directory(dir);
   const OutputLock lock(dir);
   // summary.json goes last and an earlier one first: a directory with a summary.json holds one
   // complete run, whatever was interrupted.
   std::error_code ec;
   std::filesystem::remove(dir / "summary.json", ec);
-  std::filesystem::remove(dir / (trajectory ? "trajectory.csv" : "trajectory.npz"), ec);
-  if (trajectory) {
-    trajectory(dir);
+  const bool npz = spec.format == "npz";
+  std::filesystem::remove(dir / (npz ? "trajectory.csv" : "trajectory.npz"), ec);
+  if (npz) {
+    write_trajectory_npz(dir / "trajectory.npz", s);
   } else {
     write_trajectory_csv(dir / "trajectory.csv", s);
   }

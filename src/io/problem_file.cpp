@@ -401,6 +401,10 @@ void apply_override(toml::table& root, const std::string& assignment, const std:
   } else {
     target->insert_or_assign(key, text);
   }
+  // model.alpha and model.damping_order are one field in two spellings (damping_order = 2α): an
+  // override of one replaces the other, as it replaces its own earlier value.
+  if (path == "model.alpha") target->erase("damping_order");
+  if (path == "model.damping_order") target->erase("alpha");
 }
 
 ProblemSpec read(const toml::table& root, const std::string& source) {
@@ -435,6 +439,16 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
       r.fail("model.force", "must be an array of d formulas in t, x1..xd and v1..vd");
     }
     const auto& a = *n->as_array();
+    if (const auto* label = a.empty() ? nullptr : a[0].as_string();
+        label != nullptr && label->get().starts_with(kPythonFunctionPrefix)) {
+      // What a run from Python with force=<function> records (ProblemSpec::force_object).
+      r.fail("model.force",
+             "= [\"" + label->get() +
+                 "\"] names Python functions, which a problem file cannot call: give the force "
+                 "as d formulas in t, x1..xd and v1..vd, or read this problem from Python "
+                 "(fracvi.load and fracvi.Problem.from_dict import the functions again when they "
+                 "are importable)");
+    }
     if (!a.empty() && static_cast<Eigen::Index>(a.size()) != p.dim) {  // [] means no force
       r.fail("model.force", "has " + std::to_string(a.size()) + " components, model.dim is " +
                                 std::to_string(p.dim));
@@ -545,7 +559,7 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     p.potential = r.string(
         r.required("model", "potential", "U as a formula in x1..xd and t, or a [model.chain]"),
         "model.potential");
-    if (p.potential.starts_with(kPythonPotentialPrefix)) {
+    if (p.potential.starts_with(kPythonFunctionPrefix)) {
       // What a run from Python with potential=<function> records (ProblemSpec::potential_object).
       r.fail("model.potential",
              "= \"" + p.potential +
@@ -762,6 +776,14 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
              "= " + std::to_string(p.checkpoint_every) +
                  " cannot be combined with method.tolerance (that runs several step counts; "
                  "checkpoint one run with a fixed time.steps)");
+    }
+  }
+  if (const auto* n = r.find("output", "format")) {
+    p.format = r.string(*n, "output.format");
+    const std::vector<std::string> choices{"csv", "npz"};
+    if (std::find(choices.begin(), choices.end(), p.format) == choices.end()) {
+      r.fail("output.format", "= \"" + p.format + "\" is not one of " + joined(choices) +
+                                  did_you_mean(p.format, choices));
     }
   }
   if (const auto* n = r.find("output", "times")) {

@@ -512,7 +512,7 @@ class Run(unittest.TestCase):
              "linear_solver, load, error_estimate, mirror, tolerance, max_steps, threads"),
             (["output.stride=2"],
              "fracvi run: <built-in problem>: --set output.stride: unknown key; valid in [output]: "
-             "every, checkpoint_every, times"),
+             "every, checkpoint_every, format, times"),
             (["solver.kind=lu"],
              "fracvi run: <built-in problem>: --set solver.kind: unknown section [solver]; valid "
              "sections: [model], [model.chain], [initial], [boundary], [time], [method], "

@@ -1,15 +1,22 @@
 // What a run leaves behind, read back (fracvi/io/output.hpp): read_summary is the inverse of
-// make_summary for the solution's own fields, stored_steps gives the rows the Integrator stores.
-// Python's fracvi.load end to end is python/tests/test_save_load.py.
+// make_summary for the solution's own fields, stored_steps gives the rows the Integrator stores,
+// the .npy files of trajectory.npz have NEP 1's layout. Python's fracvi.load end to end, and
+// NumPy reading the CLI's trajectory.npz, is python/tests/test_save_load.py.
 #include "fracvi/io/output.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include "fracvi/analysis/error_estimate.hpp"
+#include "fracvi/io/npz.hpp"
 #include "fracvi/io/run.hpp"
 
 namespace fracvi {
@@ -97,6 +104,58 @@ TEST(Output, ReadSummaryNamesTheField) {
   EXPECT_THROW(read_summary(j, s, "s"), OutputError);
   EXPECT_EQ(parse_status("unstable"), Status::kUnstable);
   EXPECT_EQ(parse_status("fine"), std::nullopt);
+}
+
+TEST(Npz, NpyFilesHaveTheLayoutOfNep1) {
+  const double matrix[6] = {1.0, -2.5, 3.0, 0.0, -0.0, 1e300};
+  const std::int64_t steps[3] = {0, 7, 1LL << 40};
+  struct Case {
+    NpyArray array;
+    std::string header;
+    std::size_t bytes;
+  };
+  const std::vector<Case> cases{
+      {{"x", {3, 2}, matrix}, "{'descr': '<f8', 'fortran_order': False, 'shape': (3, 2), }", 48},
+      {{"t", {6}, matrix}, "{'descr': '<f8', 'fortran_order': False, 'shape': (6,), }", 48},
+      {{"step", {3}, nullptr, steps},
+       "{'descr': '<i8', 'fortran_order': False, 'shape': (3,), }",
+       24},
+      {{"empty", {0, 4}, matrix}, "{'descr': '<f8', 'fortran_order': False, 'shape': (0, 4), }", 0},
+  };
+  for (const Case& c : cases) {
+    const std::string file = npy_file(c.array);
+    ASSERT_EQ(file.substr(0, 8), std::string("\x93NUMPY\x01\x00", 8));
+    const std::size_t length =
+        static_cast<unsigned char>(file[8]) + 256U * static_cast<unsigned char>(file[9]);
+    ASSERT_EQ((10 + length) % 64, 0U) << c.header;  // the data 64-byte aligned
+    const std::string header = file.substr(10, length);
+    EXPECT_EQ(header.substr(0, c.header.size()), c.header);
+    EXPECT_EQ(header.back(), '\n');
+    EXPECT_EQ(header.find_first_not_of(' ', c.header.size()), length - 1);  // spaces, then '\n'
+    ASSERT_EQ(file.size(), 10 + length + c.bytes);
+    const void* data = c.array.doubles ? static_cast<const void*>(c.array.doubles)
+                                       : static_cast<const void*>(c.array.integers);
+    EXPECT_EQ(std::memcmp(file.data() + 10 + length, data, c.bytes), 0);
+  }
+}
+
+TEST(Npz, AnUnwritableFileIsAnOutputErrorAndLeavesNothing) {
+  const double t[2] = {0.0, 1.0};
+  const std::vector<NpyArray> arrays{{"t", {2}, t}};
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("fracvi-npz-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  EXPECT_THROW(write_npz(dir / "missing" / "trajectory.npz", arrays), OutputError);
+  std::filesystem::create_directories(dir);
+  write_npz(dir / "trajectory.npz", arrays);
+  std::size_t files = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir)) ++files;
+  EXPECT_EQ(files, 1U);  // no temporary left
+  std::ifstream in(dir / "trajectory.npz", std::ios::binary);
+  std::string zip((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(zip.substr(0, 4), std::string("PK\x03\x04", 4));  // a ZIP local file header
+  EXPECT_NE(zip.find("t.npy"), std::string::npos);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

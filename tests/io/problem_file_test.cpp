@@ -81,6 +81,14 @@ TEST(ProblemFile, DampingOrderIsTwiceAlpha) {
   EXPECT_EQ(p.alpha, 0.75);
   EXPECT_NE(error_of(with("alpha = 0.5", "alpha = 0.5\ndamping_order = 1.0")).find("both"),
             std::string::npos);
+  // An override of one spelling replaces the other (it is one field), both ways.
+  const std::string caputo = with("alpha = 0.5", "alpha = 0.5\nconvention = \"caputo\"");
+  EXPECT_EQ(parse(caputo, {"model.damping_order=1.5"}).alpha, 0.75);
+  EXPECT_EQ(parse(with("alpha = 0.5", "damping_order = 1.5\nconvention = \"caputo\""),
+                  {"model.alpha=0.3"})
+                .alpha,
+            0.3);
+  EXPECT_EQ(parse(caputo, {"model.damping_order=1.5", "model.alpha=0.2"}).alpha, 0.2);  // last wins
 }
 
 TEST(ProblemFile, StepMustDivideTheInterval) {

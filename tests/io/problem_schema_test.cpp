@@ -197,6 +197,7 @@ std::vector<std::string> differences(const fracvi::ProblemSpec& a, const fracvi:
   check(a.every == b.every, "every");
   check(a.checkpoint_every == b.checkpoint_every, "checkpoint_every");
   check(a.times == b.times, "times");
+  check(a.format == b.format, "format");
   check(a.events == b.events, "events");
   check(a.reference == b.reference, "reference");
   return out;
@@ -354,6 +355,7 @@ const std::vector<Case>& cases() {
       {"method.threads", "", [](Json& j) { j["method"]["threads"] = 3; }},
       {"output.every", "", [](Json& j) { j["output"]["every"] = 5; }},
       {"output.checkpoint_every", "", [](Json& j) { j["output"]["checkpoint_every"] = 250; }},
+      {"output.format", "", [](Json& j) { j["output"]["format"] = "npz"; }},
       {"output.times", "",
        [](Json& j) {
          j["output"]["times"] = {0.1, 1.0 / 3.0, 1.0};

@@ -20,8 +20,12 @@ namespace fracvi {
 /// callables), the built-in chain of [model.chain] (with the [method] threads) or the expression
 /// potential of model.potential.
 std::shared_ptr<const Potential> make_potential(const ProblemSpec& spec);
-/// The initial value problem of a validated spec: the potential (make_potential; the force enters
-/// as −f(t)·x), M, R, α, convention, initial data, grid.
+/// The mechanical model of a validated spec: M, R, α, convention, U (make_potential) and the
+/// force: formulas in t alone as f(t), formulas mentioning x or v as g(x, v, t)
+/// (make_expression_forces), or the caller's g (ProblemSpec::force_object: Python callables).
+MechanicalModel make_mechanical_model(const ProblemSpec& spec);
+/// The initial value problem of a validated spec: its model (make_mechanical_model), initial
+/// data and grid.
 InitialValueProblem make_initial_value_problem(const ProblemSpec& spec);
 /// The [method] options (Newton, history, linear_solver, threads) and save_every = output.every.
 IntegratorOptions make_integrator_options(const ProblemSpec& spec);
@@ -32,7 +36,10 @@ nlohmann::json json_number(double v);
 nlohmann::json json_row(const RowMatrixXd& m, Eigen::Index row);
 /// Appends v with 17 significant digits (enough to round-trip every double).
 void append_csv_number(std::string& out, double v);
-/// Writes `content` to a temporary beside `file` (file.tmp.<pid>.<n>: unique, so that concurrent
+/// A new temporary's name beside `file`: file.tmp.<pid>.<n>, unique in this process (a later run
+/// into the directory removes those of dead processes).
+std::filesystem::path temporary_path(const std::filesystem::path& file);
+/// Writes `content` to a temporary beside `file` (temporary_path: unique, so that concurrent
 /// writers never share one) and renames it to `file`, so that a crash never leaves a half-written
 /// file under the final name. Throws OutputError on I/O failure (naming the file and the system's
 /// reason) after removing the temporary.
@@ -93,9 +100,11 @@ void write_times_csv(const std::filesystem::path& file, const Solution& solution
 void write_events_csv(const std::filesystem::path& file, const Solution& solution);
 
 /// Reads back what make_summary() wrote about the solution itself (status, message, steps, the
-/// statistics, the error estimate, the tolerance runs; null numbers are NaN) into `solution`,
-/// whose arrays are left alone: the inverse of make_summary for everything but the final state
-/// and the problem, which trajectory.csv and problem.toml hold. Throws OutputError "<what>:
+/// statistics, the error estimate, the tolerance runs, the event crossings; null numbers are NaN)
+/// into `solution`, whose arrays are left alone: the inverse of make_summary for everything but
+/// the final state, the states at output.times and the problem, which trajectory.csv, times.csv
+/// and problem.toml hold. Event names are indexed in order of first crossing. Throws OutputError
+/// "<what>:
 /// "<key>" <rule>" for a missing field or one of the wrong type.
 void read_summary(const nlohmann::json& summary, Solution& solution, const std::string& what);
 
@@ -104,18 +113,19 @@ void read_summary(const nlohmann::json& summary, Solution& solution, const std::
 /// step column; these are its rows).
 std::vector<std::size_t> stored_steps(std::size_t steps_done, std::size_t save_every);
 
+/// trajectory.npz: NumPy's archive (io/npz.hpp) of the arrays t, step (int64), x, v, energy,
+/// dissipated, balance as stored, the names and dtypes np.savez gives fracvi.write's.
+void write_trajectory_npz(const std::filesystem::path& file, const Solution& solution);
+
 /// Writes trajectory.csv (header `t,x1..xd,v1..vd,energy,dissipated,balance`, one line per stored
 /// row of the solution — every save_every-th step and the last computed one, as the integrator
-/// kept them — 17 significant digits), problem.toml and, last, summary.json into `dir` (created
-/// if needed), under an OutputLock of `dir`. An earlier summary.json is removed first, so that a
-/// directory with a summary.json holds one complete run. Files are written to temporaries and
-/// renamed, so a crash never leaves a half-written file under the final name.
-/// `trajectory`, when given, writes the trajectory in another form in place of trajectory.csv
-/// (fracvi.write(..., format="npz") writes trajectory.npz), under the same lock and before
-/// summary.json; the CSV of an earlier run is removed then, as trajectory.npz is when the CSV is
-/// written, so that the directory holds one trajectory.
-using TrajectoryWriter = std::function<void(const std::filesystem::path& dir)>;
+/// kept them — 17 significant digits), or trajectory.npz for output.format = "npz" (the other
+/// one of an earlier run is removed, so that the directory holds one trajectory), times.csv and
+/// events.csv when the problem asks for them, problem.toml and, last, summary.json into `dir`
+/// (created if needed), under an OutputLock of `dir`. An earlier summary.json is removed first,
+/// so that a directory with a summary.json holds one complete run. Files are written to
+/// temporaries and renamed, so a crash never leaves a half-written file under the final name.
 void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
-                      const Solution& solution, const TrajectoryWriter& trajectory = {});
+                      const Solution& solution);
 
 }  // namespace fracvi

@@ -42,6 +42,7 @@
 #include "fracvi/model/chain_potential.hpp"
 #include "fracvi/model/model_matrix.hpp"
 #include "fracvi/model/potential.hpp"
+#include "fracvi/model/state_force.hpp"
 
 namespace fracvi {
 
@@ -67,13 +68,18 @@ struct ProblemSpec {
   std::string potential = "0";        ///< U(x1..xd, t); "0" when `chain` is set
   /// A potential object given by the caller instead of a formula (the Python module's callables,
   /// fracvi.Problem(potential=<function>, gradient=..., hessian=...)): make_potential() returns
-  /// it, and `potential` holds its label, "python:<module>.<name>, ..." (kPythonPotentialPrefix),
+  /// it, and `potential` holds its label, "python:<module>:<name>, ..." (kPythonFunctionPrefix),
   /// which the writers record and a problem file cannot resolve (the reader says so).
   std::shared_ptr<const Potential> potential_object;
   /// [model.chain]: the built-in FPUT chain (model/chain_potential.hpp) instead of `potential`;
   /// dimension = dim, threads = the [method] threads.
   std::optional<ChainOptions> chain;
-  std::vector<std::string> force;  ///< f(t), empty or d formulas
+  std::vector<std::string> force;  ///< f(t) or g(x, v, t): empty or d formulas
+  /// g(x, v, t) given by the caller instead of formulas (the Python module's
+  /// fracvi.Problem(force=<function>, force_jacobian=...)): make_initial_value_problem() makes it
+  /// the model's state force, and `force` holds its label, {"python:<module>:<name>[, ...]"}
+  /// (kPythonFunctionPrefix), which a problem file cannot resolve either.
+  std::shared_ptr<const StateForce> force_object;
   /// L(t, x1.., y1.., xdot1.., ydot1.., dx1.., dy1..) (dx = D^alpha_- x, dy = D^alpha_+ y); when
   /// set, mass is empty, damping zero, potential "0", force empty, convention riemann-liouville.
   std::string lagrangian;
@@ -129,6 +135,9 @@ struct ProblemSpec {
   long long checkpoint_every = 0;
   /// the state at these times too (IntegratorOptions::output_times), ascending, in [start, end]
   std::vector<double> times;
+  /// the trajectory's file: "csv" (trajectory.csv, text, 17 digits) or "npz" (trajectory.npz,
+  /// NumPy's archive of the stored arrays: io/npz.hpp)
+  std::string format = "csv";
 
   // [[events]]: zero crossings of g(t, x1..xd, v1..vd) (IntegratorOptions::events)
   struct EventSpec {
@@ -144,8 +153,9 @@ struct ProblemSpec {
   std::vector<std::string> reference;  ///< exact x(t), empty or d formulas in t
 };
 
-/// How a potential given as Python callables is labelled in `ProblemSpec::potential`.
-inline constexpr std::string_view kPythonPotentialPrefix = "python:";
+/// How a potential or a force given as Python callables is labelled in `ProblemSpec::potential`
+/// and `ProblemSpec::force`.
+inline constexpr std::string_view kPythonFunctionPrefix = "python:";
 
 /// Step-DOFs (time.steps · model.dim) up to which method.mirror = "auto" runs the mirror check:
 /// such runs take well under a second (bench/RESULTS.md: 0.1–1 µs per step-DOF for the midpoint
