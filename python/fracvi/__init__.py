@@ -1259,7 +1259,8 @@ def write(solution, problem=None, directory=None, *, plot=False, format=None):
     arrays t, step, x, v, energy, dissipated, balance as stored: smaller, and about 30 times
     faster to write and read for large systems); either way an earlier run's trajectory in the
     other format is removed, and summary.json is written last. format=None takes the problem's
-    output.format ("csv" unless set; the problem.toml written records the format used).
+    output.format ("csv" unless set); a format given here leaves the problem (and its
+    problem.toml) as it is, so that load(directory).problem == problem.
     fracvi.load reads both back. Returns the directory.
     """
     if format is not None and format not in TRAJECTORY_FORMATS:
@@ -1273,10 +1274,8 @@ def write(solution, problem=None, directory=None, *, plot=False, format=None):
     if problem.dim != solution.dim:
         raise ValueError(f"write: the problem has dimension {problem.dim}, the solution "
                          f"{solution.dim}")
-    if format is not None and format != problem.format:
-        problem = problem.with_overrides(f"output.format={format}")
     directory = os.fspath(directory)
-    solution._run.write(directory, problem._spec)
+    solution._run.write(directory, problem._spec, format or "")
     if plot:
         _plotting.plot_run(directory)
     return directory
@@ -1470,7 +1469,8 @@ _RUN_OPTIONS = ("newton_absolute_tolerance", "diagnostics", "history", "start",
                 "raise_on_failure", "t_eval", "events", "dense")
 # solve_bvp()'s keywords: every key of [method] and [output] but those of the initial value
 # drivers (the error estimate and its tolerance; solve_bvp's own `tolerance` is its residual's).
-_IVP_ONLY = ("error_estimate", "tolerance", "max_steps", "checkpoint_every", "mirror")
+_IVP_ONLY = ("error_estimate", "tolerance", "max_steps", "checkpoint_every", "mirror",
+             "format")  # a BVP writes trajectory.csv of x, y and the residuals
 _BVP_FIELD_SECTIONS = {row["key"]: row["section"] for row in _fracvi.problem_schema()
                        if row["section"] in ("method", "output") and row["key"] not in _IVP_ONLY}
 _BVP_OPTIONS = ("sum", "solver", "tolerance", "raise_on_failure")

@@ -1261,10 +1261,11 @@ void bind(py::module_& m) {
            })
       .def(
           "write",
-          [](const Run& r, const std::string& directory, const ProblemSpec* spec) {
-            write_run_output(directory, spec ? *spec : r.spec, r.solution);
+          [](const Run& r, const std::string& directory, const ProblemSpec* spec,
+             const std::string& format) {
+            write_run_output(directory, spec ? *spec : r.spec, r.solution, format);
           },
-          py::arg("directory"), py::arg("spec") = nullptr);
+          py::arg("directory"), py::arg("spec") = nullptr, py::arg("format") = "");
 
   // fracvi.sweep: the cases of `fracvi sweep` on local threads; returns (columns, rows) of
   // results.csv in case order, each row its fields as text (the Python side makes NumPy columns).

@@ -496,15 +496,15 @@ void write_trajectory_npz(const std::filesystem::path& file, const Solution& s) 
   write_npz(file, arrays);
 }
 
-void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
-                      const Solution& s) {
+void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec, const Solution& s,
+                      std::string_view format) {
   prepare_output_directory(dir);
   const OutputLock lock(dir);
   // summary.json goes last and an earlier one first: a directory with a summary.json holds one
   // complete run, whatever was interrupted.
   std::error_code ec;
   std::filesystem::remove(dir / "summary.json", ec);
-  const bool npz = spec.format == "npz";
+  const bool npz = (format.empty() ? std::string_view(spec.format) : format) == "npz";
   std::filesystem::remove(dir / (npz ? "trajectory.csv" : "trajectory.npz"), ec);
   if (npz) {
     write_trajectory_npz(dir / "trajectory.npz", s);

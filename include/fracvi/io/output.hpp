@@ -8,6 +8,7 @@
 #include <ostream>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "fracvi/integrate/integrator.hpp"
@@ -125,7 +126,9 @@ void write_trajectory_npz(const std::filesystem::path& file, const Solution& sol
 /// (created if needed), under an OutputLock of `dir`. An earlier summary.json is removed first,
 /// so that a directory with a summary.json holds one complete run. Files are written to
 /// temporaries and renamed, so a crash never leaves a half-written file under the final name.
+/// `format`, when not empty, writes the trajectory in that format ("csv" or "npz") instead of
+/// output.format, the problem.toml written unchanged (Python's fracvi.write(..., format=)).
 void write_run_output(const std::filesystem::path& dir, const ProblemSpec& spec,
-                      const Solution& solution);
+                      const Solution& solution, std::string_view format = {});
 
 }  // namespace fracvi
