@@ -155,7 +155,7 @@ assert {"fvi-gl", "fvi-midpoint", "fvi-lobatto3", "dopri5"} <= set(names)
 
 # [snippet: estimate]
 fractional = runs[1.5]
-print(fractional.method, fractional.error_estimate)     # fvi-lobatto3, ~3e-10 (max |x_k - x(t_k)|)
+print(fractional.method, fractional.error_estimate)     # fvi-lobatto3, ~6e-10 (max |x_k - x(t_k)|)
 print(fractional.summary()["error_estimate_details"])   # Richardson from N/2 and N/4, order seen
 gl = fracvi.integrate(fractional.problem, scheme="fvi-gl")
 print(gl.error_estimate)                               # the paper's scheme, first order: ~1e-2
@@ -178,13 +178,13 @@ check = fracvi.integrate(fractional.problem.with_overrides("time.steps=32000"), 
 for run, name in ((fractional, "fvi-lobatto3"), (gl, "fvi-gl")):
     error = np.abs(run.x[:, 0] - check.x[:, 0])
     worst = int(np.argmax(error))
-    # Richardson compares the run with its N/2 companion at their common nodes, the even steps.
+    # Richardson compares the run with its N/2 companion at their common nodes, the even steps;
+    # the first 16 steps are checked with h/2 and h/4 too (where fvi-lobatto3's error peaks).
     say(f"{name} on the fractional pendulum: true max error {error.max():.1e} at t = "
         f"{run.t[worst]:g} (step {worst}), over the even steps {error[::2].max():.1e}; "
         f"estimate / true = {run.error_estimate / error.max():.2f}, over the even steps "
         f"{run.error_estimate / error[::2].max():.2f}")
-    assert 0.3 < run.error_estimate / error.max() < 3.0, (name, run.error_estimate, error.max())
-    assert 0.5 < run.error_estimate / error[::2].max() < 3.0, (name, run.error_estimate)
+    assert 0.5 < run.error_estimate / error.max() < 2.0, (name, run.error_estimate, error.max())
 
 # A convergence study against independent references: the viscous pendulum against SciPy's
 # DOP853 at tolerance 1e-13, the linear fractional oscillator against the inverse Laplace
@@ -264,7 +264,7 @@ for (title, scheme), (p, errors, estimates) in measured.items():
         f"estimate/error {ratio.min():.2f} .. {ratio.max():.2f}")
     # The estimate is within a factor 3 of the true error either way (low only where the first
     # steps of a fractional run hold the largest error: fvi-lobatto3, see the text).
-    assert 0.3 < ratio.min() and ratio.max() < 3.0, (title, scheme, ratio)
+    assert 1 / 3 < ratio.min() and ratio.max() < 3.0, (title, scheme, ratio)
 lobatto3_errors = measured["viscous pendulum vs DOP853", "fvi-lobatto3"][1]
 say("viscous pendulum, fvi-lobatto3 error by N: " + ", ".join(
     f"{n}: {e:.1e}" for n, e in zip(steps, lobatto3_errors)))

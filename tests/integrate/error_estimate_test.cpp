@@ -3,7 +3,8 @@
 // error from the companion runs and compares with the true max-over-nodes error against an
 // independent reference: the closed form of a damped 2-D oscillator, the Laplace inversion of a
 // Caputo fractional oscillator (2α = 0.6 and 1.5), and Boost.Odeint's dopri5 at 1e-12 for the
-// forced nonlinear pendula. Negative controls: a run that failed gets no estimate, and
+// forced nonlinear pendula; the first steps of a fractional run, where a high-order scheme's error
+// peaks, are estimated too. Negative controls: a run that failed gets no estimate, and
 // method.error_estimate = "none" none.
 #include <gtest/gtest.h>
 
@@ -125,6 +126,19 @@ TEST(ErrorEstimate, WithinAFactorThreeOfTheTrueError) {
        "fvi-midpoint", 400},
       {"Caputo 2a = 1.5 (Laplace inversion)", oscillator(caputo15), laplace(caputo15),
        "fvi-lobatto4", 64},
+      // Fine grids of the high-order schemes on fractional problems: the largest error is in the
+      // initial layer (step 1: the solution's t^(2 - 2a + 2)-type terms at t0), between the nodes
+      // the N/2 run shares; the first steps are checked with h/2 and h/4 as well.
+      {"Caputo 2a = 1.5 (Laplace inversion)", oscillator(caputo15), laplace(caputo15),
+       "fvi-lobatto3", 1000},
+      {"Caputo 2a = 1.5 (Laplace inversion)", oscillator(caputo15), laplace(caputo15),
+       "fvi-lobatto3", 4000},
+      {"Caputo 2a = 0.6 (Laplace inversion)", oscillator(caputo06), laplace(caputo06),
+       "fvi-lobatto3", 2000},
+      {"Caputo 2a = 1.5 (Laplace inversion)", oscillator(caputo15), laplace(caputo15),
+       "fvi-lobatto4", 1000},
+      {"Caputo 2a = 1.5 (Laplace inversion)", oscillator(caputo15), laplace(caputo15),
+       "fvi-midpoint", 4000},
       {"forced pendula, nonlinear (dopri5)", pendula, dopri5, "fvi-gl", 1600},
       {"forced pendula, nonlinear (dopri5)", pendula, dopri5, "fvi-bdf2", 400},
       {"forced pendula, nonlinear (dopri5)", pendula, dopri5, "fvi-lobatto3", 64},
@@ -145,6 +159,37 @@ TEST(ErrorEstimate, WithinAFactorThreeOfTheTrueError) {
     EXPECT_GE(r, 1.0 / 3.0) << c.label << ", " << c.scheme;
     EXPECT_LE(r, 3.0) << c.label << ", " << c.scheme;
   }
+}
+
+// The initial layer decides for fvi-lobatto3 at 2α = 1.5: the true error peaks at step 1, which
+// the N/2 run does not share; over the shared nodes alone the estimate was 0.39 of the truth.
+TEST(ErrorEstimate, TheFirstStepsOfAFractionalRunAreEstimated) {
+  const test::LinearOscillator caputo15 = test::fractional_oscillator(1.5, Convention::kCaputo);
+  const InitialValueProblem problem =
+      test::oscillator_problem(caputo15, Convention::kCaputo, 4000, 5.0);
+  const Method method = *parse_method("fvi-lobatto3");
+  IntegratorOptions options;
+  options.mirror = false;
+  Solution sol = integrate(problem, method, options);
+  ASSERT_TRUE(sol.ok()) << sol.message;
+  estimate_error(problem, method, options, sol);
+  const Eigen::MatrixXd exact = laplace(caputo15)(problem);
+  double truth = 0.0, shared = 0.0;
+  Eigen::Index worst = 0;
+  for (Eigen::Index k = 0; k < sol.x.rows(); ++k) {
+    const double error = (sol.x.row(k) - exact.row(k)).cwiseAbs().maxCoeff();
+    if (error > truth) worst = k;
+    truth = std::max(truth, error);
+    if (k % 2 == 0) shared = std::max(shared, error);
+  }
+  EXPECT_EQ(worst, 1);             // the peak is at step 1 ...
+  EXPECT_GT(truth, 2.0 * shared);  // ... well above the error at the shared (even) nodes
+  const double ratio = sol.error_estimate.value / truth;
+  EXPECT_GT(ratio, 0.8);
+  EXPECT_LT(ratio, 1.25);
+  EXPECT_NE(sol.error_estimate.note.find("the first 16 steps, checked with h/2 and h/4"),
+            std::string::npos)
+      << sol.error_estimate.note;
 }
 
 TEST(ErrorEstimate, NoneWithoutASuccessfulRunOrWhenNotRequested) {

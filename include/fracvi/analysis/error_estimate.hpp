@@ -7,7 +7,9 @@
 //
 // with p the order observed from a third run with N/4 steps (log2 of the ratio of the N/4–N/2 to
 // the N/2–N differences on the nodes all three share), limited to [0.5, declared + 2], or the
-// declared order without that run. It assumes the runs are in the asymptotic range; the observed
+// declared order without that run; and the first 16 steps estimated towards finer grids (runs over
+// them with h/2 and h/4) when that is larger — a fractional run's error can peak at step 1, which
+// the N/2 run does not share. It assumes the runs are in the asymptotic range; the observed
 // order is reported so that a user can see when they are not. When N is odd, or the N/2 run is
 // refused (stability bound) or fails, the companion is a run with 2N steps instead:
 // err_N ≈ max_k ‖x^N_k − x^{2N}_{2k}‖ · 2^p/(2^p − 1) with the declared p (twice the cost).
