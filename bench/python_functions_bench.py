@@ -82,57 +82,45 @@ def timed(p, repeats):
     return best, solution
 
 
+def table(title, columns, make_runs, steps, repeats):
+    """One table: per d, the runs make_runs(d) = {formula, functions, difference} timed."""
+    print(title)
+    print(f"{'d':>4} {'formula':>9} {columns[0]:>10} {'ratio':>6} {columns[1]:>11} "
+          f"{'ratio':>6} {'newton':>17} {'max |Δx|':>9}")
+    for d in (1, 2, 10, 50):
+        results = {name: timed(p, repeats) for name, p in make_runs(d).items()}
+        per_step = {name: 1e6 * t / steps for name, (t, _) in results.items()}
+        sols = {name: s for name, (_, s) in results.items()}
+        for name, s in sols.items():
+            assert s.status == "success", (name, s.message)
+        newton = "/".join(str(sols[n].summary()["newton_iterations"])
+                          for n in ("formula", "functions", "difference"))
+        dx = max(np.max(np.abs(sols[n].x - sols["formula"].x)) for n in ("functions",
+                                                                         "difference"))
+        print(f"{d:>4} {per_step['formula']:>9.2f} {per_step['functions']:>10.2f} "
+              f"{per_step['functions'] / per_step['formula']:>6.1f} "
+              f"{per_step['difference']:>11.2f} "
+              f"{per_step['difference'] / per_step['formula']:>6.1f} {newton:>17} {dx:>9.1e}")
+
+
 def main():
     quick = "--quick" in sys.argv
     steps = 2000 if quick else 10000
     repeats = 1 if quick else 3
-    print(f"steps = {steps}, best of {repeats}; time per step in µs")
-    print(f"{'d':>4} {'formula':>9} {'functions':>10} {'ratio':>6} {'no hessian':>11} "
-          f"{'ratio':>6} {'newton f/p/nh':>14} {'max |Δx|':>9}")
-    for d in (1, 2, 10, 50):
-        runs = {
-            "formula": problem(d, steps, potential=formula(d)),
-            "functions": problem(d, steps, potential=U, gradient=dU, hessian=H),
-            "difference": problem(d, steps, potential=U, gradient=dU),
-        }
-        results = {name: timed(p, repeats) for name, p in runs.items()}
-        per_step = {name: 1e6 * t / steps for name, (t, _) in results.items()}
-        sols = {name: s for name, (_, s) in results.items()}
-        for name, s in sols.items():
-            assert s.status == "success", (name, s.message)
-        newton = "/".join(str(sols[n].summary()["newton_iterations"])
-                          for n in ("formula", "functions", "difference"))
-        dx = max(np.max(np.abs(sols[n].x - sols["formula"].x)) for n in ("functions",
-                                                                         "difference"))
-        print(f"{d:>4} {per_step['formula']:>9.2f} {per_step['functions']:>10.2f} "
-              f"{per_step['functions'] / per_step['formula']:>6.1f} "
-              f"{per_step['difference']:>11.2f} "
-              f"{per_step['difference'] / per_step['formula']:>6.1f} {newton:>14} {dx:>9.1e}")
-
-
-    print(f"\nthe force g(x, v, t) = -C x^2 v; time per step in µs")
-    print(f"{'d':>4} {'formula':>9} {'function':>10} {'ratio':>6} {'no jacobian':>11} "
-          f"{'ratio':>6} {'newton f/p/nj':>14} {'max |Δx|':>9}")
-    for d in (1, 2, 10, 50):
-        runs = {
-            "formula": problem(d, steps, potential=formula(d), force=force_formulas(d)),
-            "functions": problem(d, steps, potential=formula(d), force=g,
-                                 force_jacobian=g_jacobian),
-            "difference": problem(d, steps, potential=formula(d), force=g),
-        }
-        results = {name: timed(p, repeats) for name, p in runs.items()}
-        per_step = {name: 1e6 * t / steps for name, (t, _) in results.items()}
-        sols = {name: s for name, (_, s) in results.items()}
-        for name, s in sols.items():
-            assert s.status == "success", (name, s.message)
-        newton = "/".join(str(sols[n].summary()["newton_iterations"])
-                          for n in ("formula", "functions", "difference"))
-        dx = max(np.max(np.abs(sols[n].x - sols["formula"].x)) for n in ("functions",
-                                                                         "difference"))
-        print(f"{d:>4} {per_step['formula']:>9.2f} {per_step['functions']:>10.2f} "
-              f"{per_step['functions'] / per_step['formula']:>6.1f} "
-              f"{per_step['difference']:>11.2f} "
-              f"{per_step['difference'] / per_step['formula']:>6.1f} {newton:>14} {dx:>9.1e}")
+    print(f"steps = {steps}, best of {repeats}; time per step in µs; Newton iterations of the "
+          f"formula/functions/difference runs")
+    table("U as functions", ("functions", "no hessian"), lambda d: {
+        "formula": problem(d, steps, potential=formula(d)),
+        "functions": problem(d, steps, potential=U, gradient=dU, hessian=H),
+        "difference": problem(d, steps, potential=U, gradient=dU),
+    }, steps, repeats)
+    table("\nthe force g(x, v, t) = -C x^2 v as a function", ("function", "no jacobian"),
+          lambda d: {
+              "formula": problem(d, steps, potential=formula(d), force=force_formulas(d)),
+              "functions": problem(d, steps, potential=formula(d), force=g,
+                                   force_jacobian=g_jacobian),
+              "difference": problem(d, steps, potential=formula(d), force=g),
+          }, steps, repeats)
 
 
 if __name__ == "__main__":

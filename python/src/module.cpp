@@ -978,6 +978,25 @@ Curve python_curve(py::handle c, Eigen::Index d, const std::string& name) {
   return curve;
 }
 
+/// `calls` (the Python model functions of `spec`, `f`) once at the initial state `where`: what
+/// goes wrong is a ProblemError naming the field and the rule, a Ctrl-C inside them is raised.
+template <class ModelFunction, class Calls>
+void check_at_initial_state(const ProblemSpec& spec, const std::shared_ptr<const ModelFunction>& f,
+                            const char* where, Calls&& calls) {
+  if (spec.position.size() != spec.dim) return;  // a boundary value problem without [initial]
+  try {
+    calls();
+  } catch (const std::runtime_error& e) {
+    py::object raised = python::take_raised_interrupt(f);
+    if (!raised.is_none()) {  // Ctrl-C inside the function: raise it, not a ProblemError
+      PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(raised.ptr())), raised.ptr());
+      throw py::error_already_set();
+    }
+    throw ProblemError(spec.source + ": at the initial state (" + where + " = " +
+                       repr_text(py::float_(spec.start)) + "): " + e.what());
+  }
+}
+
 /// `spec` with U given as Python functions (callables.hpp) in place of its formula, labelled
 /// `label` (kPythonFunctionPrefix...). The functions are called once at (x(t0), t0), so that a
 /// function that fails or returns the wrong shape is reported now, naming the field and the rule,
@@ -993,23 +1012,14 @@ ProblemSpec with_python_potential(const ProblemSpec& spec, const std::string& la
   s.potential = label;
   s.potential_object = python::make_python_potential(s.dim, std::move(value), std::move(gradient),
                                                      std::move(hessian));
-  if (s.position.size() != s.dim) return s;  // a boundary value problem without [initial]
-  const Potential& u = *s.potential_object;
-  Eigen::VectorXd g(s.dim);
-  Eigen::MatrixXd h(s.dim, s.dim);
-  try {
+  check_at_initial_state(s, s.potential_object, "x(t0), t0", [&] {
+    const Potential& u = *s.potential_object;
+    Eigen::VectorXd g(s.dim);
+    Eigen::MatrixXd h(s.dim, s.dim);
     (void)u.value(s.position, s.start);
     u.gradient(s.position, s.start, g);
     u.hessian(s.position, s.start, h);
-  } catch (const std::runtime_error& e) {
-    py::object raised = python::take_raised_interrupt(s.potential_object);
-    if (!raised.is_none()) {  // Ctrl-C inside the function: raise it, not a ProblemError
-      PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(raised.ptr())), raised.ptr());
-      throw py::error_already_set();
-    }
-    throw ProblemError(s.source + ": at the initial state (x(t0), t0 = " +
-                       repr_text(py::float_(s.start)) + "): " + e.what());
-  }
+  });
   return s;
 }
 
@@ -1025,22 +1035,14 @@ ProblemSpec with_python_force(const ProblemSpec& spec, const std::string& label,
   ProblemSpec s = spec;
   s.force = {label};
   s.force_object = python::make_python_force(s.dim, std::move(force), std::move(jacobian));
-  if (s.position.size() != s.dim) return s;  // a boundary value problem without [initial]
-  Eigen::VectorXd g(s.dim);
-  Eigen::MatrixXd dx(s.dim, s.dim), dv(s.dim, s.dim);
-  try {
+  check_at_initial_state(s, s.force_object, "x(t0), v(t0), t0", [&] {
+    Eigen::VectorXd g(s.dim);
+    Eigen::MatrixXd dx(s.dim, s.dim), dv(s.dim, s.dim);
     s.force_object->jacobians(s.position, s.velocity, s.start, g, dx, dv);
-  } catch (const std::runtime_error& e) {
-    py::object raised = python::take_raised_interrupt(s.force_object);
-    if (!raised.is_none()) {  // Ctrl-C inside the function: raise it, not a ProblemError
-      PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(raised.ptr())), raised.ptr());
-      throw py::error_already_set();
-    }
-    throw ProblemError(s.source + ": at the initial state (x(t0), v(t0), t0 = " +
-                       repr_text(py::float_(s.start)) + "): " + e.what());
-  }
+  });
   return s;
 }
+
 }  // namespace
 
 void bind(py::module_& m) {
