@@ -38,20 +38,17 @@ TEST(OnlineConvolution, MatchesTheDirectSumsToRoundOff) {
     const char* name;
     std::size_t capacity;
     Eigen::Index first;
+    double power;  // w_m = (m + 1)^(power − 1); 0: random signed weights
   };
-  for (const Case& c : {Case{"power 0.6", 3000, 1}, Case{"power 1.5", 4096, 0},
-                        Case{"random signed", 1500, 2}, Case{"tiny", 3, 0}}) {
+  for (const Case& c : {Case{"power 0.6", 3000, 1, 0.6}, Case{"power 1.5", 4096, 0, 1.5},
+                        Case{"random signed", 1500, 2, 0.0}, Case{"tiny", 3, 0, 1.5}}) {
     const Eigen::Index d = 3;
     Eigen::VectorXd w(static_cast<Eigen::Index>(c.capacity));
     std::mt19937_64 gen(7);
     std::uniform_real_distribution<double> uniform(-1.0, 1.0);
     for (Eigen::Index m = 0; m < w.size(); ++m) {
       const double lag = static_cast<double>(m);
-      if (c.name[0] == 'r') {
-        w[m] = uniform(gen);
-      } else {
-        w[m] = std::pow(lag + 1.0, (c.name[6] == '0' ? 0.6 : 1.5) - 1.0);
-      }
+      w[m] = c.power == 0.0 ? uniform(gen) : std::pow(lag + 1.0, c.power - 1.0);
     }
     const RowMatrixXd values =
         random_values(c.first + static_cast<Eigen::Index>(c.capacity), d, 11);
