@@ -17,6 +17,19 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+// The options of a companion run with `steps` steps: no mirror run, no diagnostics, no stored rows
+// (the observer takes them), no output times or events (the grid rows are compared; no stop at a
+// terminal event).
+IntegratorOptions companion_options(const IntegratorOptions& options, std::size_t steps) {
+  IntegratorOptions o = options;
+  o.mirror = false;
+  o.diagnostics = false;
+  o.save_every = steps;
+  o.output_times.clear();
+  o.events.clear();
+  return o;
+}
+
 // x of a companion run with `steps` steps at the main run's stored nodes that it shares: row i of
 // the result is x^{steps} at the main run's step solution.step[i] when that node is on the
 // companion's grid (k · steps / N whole), NaN otherwise. nullopt when the run is refused or fails
@@ -26,12 +39,7 @@ std::optional<RowMatrixXd> companion(const InitialValueProblem& problem, const M
                                      std::size_t steps, std::string& why) {
   InitialValueProblem p = problem;
   p.steps = steps;
-  IntegratorOptions o = options;
-  o.mirror = false;
-  o.diagnostics = false;
-  o.save_every = steps;    // the rows are taken by the observer below, not stored
-  o.output_times.clear();  // the grid rows are compared; no stop at a terminal event
-  o.events.clear();
+  const IntegratorOptions o = companion_options(options, steps);
   const std::size_t n = problem.steps;
   // Companion step j ↔ main step j · n / steps; main step k ↔ stored row (k / save_every, or
   // the last row for k = n).
@@ -68,12 +76,7 @@ std::optional<RowMatrixXd> first_steps(const InitialValueProblem& problem, const
   InitialValueProblem p = problem;
   p.steps = m * refine;
   p.t_end = problem.time(static_cast<double>(m));
-  IntegratorOptions o = options;
-  o.mirror = false;
-  o.diagnostics = false;
-  o.save_every = p.steps;
-  o.output_times.clear();
-  o.events.clear();
+  const IntegratorOptions o = companion_options(options, p.steps);
   RowMatrixXd x(static_cast<Eigen::Index>(m + 1), problem.model.dimension());
   try {
     Integrator integrator(std::move(p), method, o);
