@@ -216,6 +216,17 @@ Command add_run_command(CLI::App& parent) {
       std::printf("  newton            %zu iterations (max %zu per step), %s linear solver\n",
                   solution.newton_iterations, solution.max_newton_iterations_per_step,
                   solution.linear_solver.c_str());
+      if (solution.history == "fast") {
+        std::printf(
+            "  damping memory    fast: %zu exponentials + window of %zu lags, eps = %.1e (%s), "
+            "%.3g MB\n",
+            solution.history_exponentials, solution.history_window, solution.history_tolerance,
+            solution.history_tolerance_auto ? "auto" : "given",
+            1e-6 * static_cast<double>(solution.history_bytes));
+      } else if (solution.history != "none") {
+        std::printf("  damping memory    %s, %.3g MB\n", solution.history.c_str(),
+                    1e-6 * static_cast<double>(solution.history_bytes));
+      }
       std::printf("  stored            %lld of %zu states (save_every %zu)\n",
                   static_cast<long long>(solution.t.size()), solution.steps_done + 1,
                   solution.save_every);

@@ -688,6 +688,15 @@ class Solution:
     history_limited = _view("history_limited",
                             "True when the budget asked for less than the fit's floor 1e-13: the "
                             "history may limit the accuracy")
+    history = _view("history", 'the damping memory that ran: "direct", "fast", "local", "fft" '
+                    'or "none" (what method.history = "auto" chose)')
+    history_bytes = _view("history_bytes", "bytes kept by the damping memory")
+    history_exponentials = _view("history_exponentials",
+                                 "K, the fast history's exponentials (recursions per degree of "
+                                 "freedom); 0 for the other memories")
+    history_window = _view("history_window",
+                           "n0, the fast history's window of exactly weighted recent lags; 0 for "
+                           "the other memories")
     method = _view("method", 'the scheme, e.g. "fvi-gl"')
     linear_solver = _view("linear_solver",
                           'factorisation of the Newton matrix used: "dense", "banded" or "sparse"')

@@ -1187,6 +1187,12 @@ void bind(py::module_& m) {
                              [](const Run& r) { return r.solution.history_tolerance_auto; })
       .def_property_readonly("history_limited",
                              [](const Run& r) { return r.solution.history_limited; })
+      .def_property_readonly("history", [](const Run& r) { return r.solution.history; })
+      .def_property_readonly("history_bytes", [](const Run& r) { return r.solution.history_bytes; })
+      .def_property_readonly("history_exponentials",
+                             [](const Run& r) { return r.solution.history_exponentials; })
+      .def_property_readonly("history_window",
+                             [](const Run& r) { return r.solution.history_window; })
       .def_property_readonly("method", [](const Run& r) { return r.solution.method; })
       .def_property_readonly("declared_order",
                              [](const Run& r) { return r.solution.declared_order; })

@@ -292,6 +292,16 @@ def test_history_tolerance_auto_is_recorded(cli, write_file, tmp_path):
     assert user.summary()["history_tolerance_mode"] == "user"
     direct = fracvi.integrate(path, scheme="fvi-gl", history="direct", mirror=False)
     assert math.isnan(direct.history_tolerance)
+    # K and n0 of the fast history: a looser ε needs no more exponentials; its state is the
+    # window's 2·n0 columns, the K recursions and the sum per degree of freedom at least.
+    assert sol.history == "fast" and user.history == "fast" and direct.history == "direct"
+    assert sol.history_exponentials > 0 and sol.history_window > 0
+    assert user.history_exponentials <= sol.history_exponentials
+    assert sol.history_bytes >= 8 * (sol.history_exponentials + 2 * sol.history_window + 1)
+    assert direct.history_exponentials == 0 and direct.history_window == 0
+    assert direct.history_bytes >= 8 * 8193
+    assert summary["history_exponentials"] == sol.history_exponentials
+    assert summary["history_window"] == sol.history_window
     # The CLI records the same, and fracvi.load reads it back.
     out = str(tmp_path / "auto")
     r = cli("run", path, "--set", "method.scheme=fvi-gl", "--set", "method.history=fast",
@@ -302,6 +312,12 @@ def test_history_tolerance_auto_is_recorded(cli, write_file, tmp_path):
     assert written["history_tolerance_mode"] == "auto" and written["history_limited"] is False
     loaded = fracvi.load(out)
     assert loaded.history_tolerance == sol.history_tolerance and loaded.history_tolerance_auto
+    assert (loaded.history_exponentials, loaded.history_window, loaded.history_bytes) == (
+        sol.history_exponentials, sol.history_window, sol.history_bytes)
+    assert "damping memory    fast: %d exponentials + window of %d lags" % (
+        sol.history_exponentials, sol.history_window) in cli(
+            "run", path, "--set", "method.scheme=fvi-gl", "--set", "method.history=fast",
+            "--out", str(tmp_path / "text"), "--no-plot").stdout
 
 
 def test_memory_is_estimated_before_allocating():

@@ -196,8 +196,11 @@ struct Integrator::Impl {
     sol.save_every = options.save_every;
     sol.step_size = h;
     sol.linear_solver = std::string(to_string(stepper->linear_solver()));
-    sol.history_bytes = stepper->history_bytes();
-    sol.history = std::string(stepper->history_kind());
+    const HistoryReport memory = stepper->history();
+    sol.history_bytes = memory.bytes;
+    sol.history = std::string(memory.kind);
+    sol.history_exponentials = memory.exponentials;
+    sol.history_window = memory.window;
     if (sol.history == "fast") {
       sol.history_tolerance = budget.tolerance;
       sol.history_tolerance_auto = budget.automatic;

@@ -332,6 +332,9 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
       {"max_newton_iterations_per_step", s.max_newton_iterations_per_step},
       {"linear_solver", s.linear_solver},
       {"history", s.history},
+      {"history_bytes", s.history_bytes},
+      {"history_exponentials", s.history_exponentials},
+      {"history_window", s.history_window},
       {"history_tolerance", json_number(s.history_tolerance)},
       {"history_tolerance_mode",
        std::isfinite(s.history_tolerance) ? (s.history_tolerance_auto ? "auto" : "user") : ""},
@@ -418,6 +421,11 @@ void read_summary(const nlohmann::json& summary, Solution& s, const std::string&
   s.max_newton_iterations_per_step = r.count(summary, "max_newton_iterations_per_step");
   s.linear_solver = r.text(summary, "linear_solver");
   s.history = r.text(summary, "history");
+  if (summary.contains("history_exponentials")) {
+    s.history_bytes = r.count(summary, "history_bytes");
+    s.history_exponentials = r.count(summary, "history_exponentials");
+    s.history_window = r.count(summary, "history_window");
+  }  // else written before K and n0 were recorded (issue 17): 0 as for no fast history
   if (summary.contains("history_tolerance")) {
     s.history_tolerance = r.number(summary, "history_tolerance");
     s.history_tolerance_auto = r.text(summary, "history_tolerance_mode") == "auto";

@@ -48,14 +48,14 @@ void DiscreteElSystem::phase_points(const Sequence& x, const Sequence& y,
   for (Eigen::Index k = 0; k <= n; ++k) {
     auto zk = z.col(k);
     if (k == n) {
-      // The completed point of ActionSum::kExtended (S z_N := z_N, Δ_+y_N := 0).
+      // The completed point of ActionSum::kExtended (S z_N := z_N, ẏ slot := 0).
       zk.segment(0, d) = x.col(n);
       zk.segment(d, d) = y.col(n);
       zk.segment(3 * d, d).setZero();
     } else {
       zk.segment(0, d) = 0.5 * (x.col(k) + x.col(k + 1));
       zk.segment(d, d) = 0.5 * (y.col(k) + y.col(k + 1));
-      zk.segment(3 * d, d) = (y.col(k) - y.col(k + 1)) * inv_h_;
+      zk.segment(3 * d, d) = (y.col(k + 1) - y.col(k)) * inv_h_;
     }
     if (k == 0) {
       zk.segment(2 * d, d).setZero();  // Δ_−x_0 := 0 (`DiscDerDef:1`)
@@ -86,8 +86,9 @@ void DiscreteElSystem::assemble(const Eigen::MatrixXd& g, Sequence& x_eq, Sequen
     // in A_d), the completed point's value for the extended one.
     xe += g.col(j).segment(2 * d, d) * inv_h_;
     if (j + 1 < n || extended) xe -= g.col(j + 1).segment(2 * d, d) * inv_h_;
-    // Δ_−D_4L(j) = (D_4L(j) − D_4L(j−1))/h.
-    ye += (g.col(j).segment(3 * d, d) - g.col(j - 1).segment(3 * d, d)) * inv_h_;
+    // −Δ_−D_4L(j) = (D_4L(j−1) − D_4L(j))/h: the ẏ slot holds the forward difference
+    // (y_{k+1} − y_k)/h = −Δ_+y_k (docs/theory/misprints.md, `DiscDerDef:2`).
+    ye += (g.col(j - 1).segment(3 * d, d) - g.col(j).segment(3 * d, d)) * inv_h_;
   }
   // Δ^α_−D_6L(j) (x-equation, from the y-variation) and Δ^α_+D_5L(j) (y-equation, from the
   // x-variation), with D_5L(N) = 0 for the printed sum. Columns 0 and N are cleared afterwards.

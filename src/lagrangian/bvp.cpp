@@ -183,8 +183,8 @@ struct DiscreteElJacobian::Impl {
       add(0, k + 1, false, 0.5);
       add(1, k, true, 0.5);
       add(1, k + 1, true, 0.5);
-      add(3, k, true, inv_h);
-      add(3, k + 1, true, -inv_h);
+      add(3, k, true, -inv_h);  // the ẏ slot (y_{k+1} − y_k)/h
+      add(3, k + 1, true, inv_h);
     }
     if (k >= 1) {
       add(2, k, false, inv_h);

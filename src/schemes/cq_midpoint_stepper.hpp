@@ -55,11 +55,8 @@ class CqMidpointStepper final : public Stepper {
   [[nodiscard]] double mirror_error(const RowMatrixXd& x,
                                     std::span<const std::size_t> steps) const override;
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
-  [[nodiscard]] std::size_t history_bytes() const override {
-    return history_ ? history_->memory_bytes() : 0;
-  }
-  [[nodiscard]] std::string_view history_kind() const override {
-    return history_ ? history_->kind() : "none";
+  [[nodiscard]] HistoryReport history() const override {
+    return history_ ? history_->report() : HistoryReport{};
   }
   void visit_state(StateArchive& archive) override;
 

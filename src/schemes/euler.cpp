@@ -87,11 +87,8 @@ class EulerStepper final : public Stepper {
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
-  [[nodiscard]] std::size_t history_bytes() const override {
-    return history_ ? history_->memory_bytes() : 0;
-  }
-  [[nodiscard]] std::string_view history_kind() const override {
-    return history_ ? history_->kind() : "none";
+  [[nodiscard]] HistoryReport history() const override {
+    return history_ ? history_->report() : HistoryReport{};
   }
   void visit_state(StateArchive& archive) override {
     visit_step_index(archive, d_, problem_.steps, k_);

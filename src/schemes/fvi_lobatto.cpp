@@ -487,11 +487,8 @@ class LobattoStepper final : public Stepper {
   [[nodiscard]] LinearSolver linear_solver() const override {
     return stage_matrix_.is_sparse() ? LinearSolver::kSparse : LinearSolver::kDense;
   }
-  [[nodiscard]] std::size_t history_bytes() const override {
-    return history_ ? history_->memory_bytes() : 0;
-  }
-  [[nodiscard]] std::string_view history_kind() const override {
-    return history_ ? history_->kind() : "none";
+  [[nodiscard]] HistoryReport history() const override {
+    return history_ ? history_->report() : HistoryReport{};
   }
   [[nodiscard]] const Eigen::MatrixXd* stage_values() const override {
     return n_ > 0 ? &cur_.stages : nullptr;

@@ -98,11 +98,8 @@ class TrapezoidalMidpointStepper final : public Stepper {
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
-  [[nodiscard]] std::size_t history_bytes() const override {
-    return memory_ ? memory_->memory_bytes() : 0;
-  }
-  [[nodiscard]] std::string_view history_kind() const override {
-    return memory_ ? memory_->kind() : "none";
+  [[nodiscard]] HistoryReport history() const override {
+    return memory_ ? memory_->report() : HistoryReport{};
   }
   [[nodiscard]] double mirror_error(const RowMatrixXd& x,
                                     std::span<const std::size_t> steps) const override;

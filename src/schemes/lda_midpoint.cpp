@@ -81,11 +81,8 @@ class LdaMidpointStepper final : public Stepper {
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
-  [[nodiscard]] std::size_t history_bytes() const override {
-    return memory_ ? memory_->memory_bytes() : 0;
-  }
-  [[nodiscard]] std::string_view history_kind() const override {
-    return memory_ ? memory_->kind() : "none";
+  [[nodiscard]] HistoryReport history() const override {
+    return memory_ ? memory_->report() : HistoryReport{};
   }
   void visit_state(StateArchive& archive) override {
     visit_step_index(archive, d_, problem_.steps, k_);

@@ -171,11 +171,12 @@ class PiTrapezoidStepper final : public Stepper {
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
-  [[nodiscard]] std::string_view history_kind() const override { return fft_ ? "fft" : "direct"; }
-  [[nodiscard]] std::size_t history_bytes() const override {
-    return static_cast<std::size_t>(values_d_.size() + values_g_.size() + values_e_.size()) *
-               sizeof(double) +
-           position_sum_.memory_bytes() + velocity_sum_.memory_bytes();
+  [[nodiscard]] HistoryReport history() const override {
+    return {fft_ ? "fft" : "direct",
+            static_cast<std::size_t>(values_d_.size() + values_g_.size() + values_e_.size()) *
+                    sizeof(double) +
+                position_sum_.memory_bytes() + velocity_sum_.memory_bytes(),
+            0, 0};
   }
 
  private:

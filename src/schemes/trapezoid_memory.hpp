@@ -22,6 +22,7 @@
 #include "fracvi/schemes/registry.hpp"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <boost/math/special_functions/gamma.hpp>
 #include <cmath>
 #include <cstddef>
@@ -87,6 +88,14 @@ class NodeAveragedTrapezoid {
   [[nodiscard]] std::size_t memory_bytes() const {
     return (difference_ ? difference_->memory_bytes() : 0) +
            (average_ ? average_->memory_bytes() : 0);
+  }
+  /// Both histories as one (History::report): their exponentials added (the recursions per
+  /// degree of freedom of a step), the longer window.
+  [[nodiscard]] HistoryReport report() const {
+    const HistoryReport a = difference_ ? difference_->report() : HistoryReport{};
+    const HistoryReport b = average_ ? average_->report() : HistoryReport{};
+    return {kind(), a.bytes + b.bytes, a.exponentials + b.exponentials,
+            std::max(a.window, b.window)};
   }
 
  private:

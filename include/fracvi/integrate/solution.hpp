@@ -101,6 +101,10 @@ struct Solution {
   std::size_t history_bytes = 0;  ///< memory of the damping history (History::memory_bytes)
   /// The damping memory used: "direct", "fast", "local" or "none" (what "auto" chose).
   std::string history = "none";
+  /// A fast history's K (exponentials: recursions per degree of freedom) and n0 (the window of
+  /// exactly weighted recent lags); 0 for the other memories (HistoryReport).
+  std::size_t history_exponentials = 0;
+  std::size_t history_window = 0;
   /// The per-weight relative accuracy ε of the fast history (NaN when the run has none: direct,
   /// local, FFT or no memory), and whether the accuracy budget chose it ("auto") or the user
   /// (history_budget.hpp). history_limited: the budget asked for less than the fit can deliver

@@ -4,10 +4,14 @@
 // Grid t_k = a + k h, h = (b − a)/N. Discrete curves are d × (N+1) matrices, column k = x_k
 // (fracvi/discrete/operators.hpp). L(k) is L evaluated at time t_{k+½} and at the phase point
 //
-//     z_k = (S x_k, S y_k, Δ_−x_k, Δ_+y_k, Δ^α_−x_k, Δ^α_+y_k)            (`AllSequencs`)
+//     z_k = (S x_k, S y_k, Δ_−x_k, −Δ_+y_k, Δ^α_−x_k, Δ^α_+y_k)           (`AllSequencs`)
 //
 // — the midpoint S x_k = (x_k + x_{k+1})/2 paired with the *backward* difference
-// Δ_−x_k = (x_k − x_{k−1})/h (Δ_−x_0 := 0) and the forward Δ_+y_k = −(y_{k+1} − y_k)/h.
+// Δ_−x_k = (x_k − x_{k−1})/h (Δ_−x_0 := 0), and in the ẏ slot the forward difference
+// −Δ_+y_k = (y_{k+1} − y_k)/h. The paper puts Δ_+y_k = −(y_{k+1} − y_k)/h there, calling it an
+// approximation of ẏ; it approximates −ẏ, and with it the discrete solutions of a Lagrangian odd in
+// ẏ converge to FracEL of L(x, y, ẋ, −ẏ, …) (docs/theory/misprints.md). For L even in ẏ (the
+// mechanical L among them) the two give the same equations.
 //
 // Δ^α_∓ are convolution quadratures h^{−α} Σ ω_n (·): ω_n = cq_weights(grid.quadrature, α, ·).
 // The default δ(ζ) = 1 − ζ gives the paper's Grünwald–Letnikov α_n (`AlphaDef`, scheme `fvi-gl`);
@@ -23,11 +27,11 @@
 //    printed equations contain terms D_3L(N), D_5L(N) of a point L(N) that the sum does not have:
 //    at k = N − 1 in the x-equation, and at every k (weight α_{N−k}) in the y-equation.
 //  * ActionSum::kExtended: A_d⁺ = A_d + h L(N), with the point N completed by the paper's own
-//    boundary convention mirrored (S x_N := x_N, S y_N := y_N, Δ_+y_N := 0, t_N = b; the other
+//    boundary convention mirrored (S x_N := x_N, S y_N := y_N, ẏ slot := 0, t_N = b; the other
 //    three entries are defined by `AllSequencs`). Its exact restricted gradient *is* the printed
 //    `DiscFracEL`, and for the mechanical Lagrangian the printed `DiscEqs` that the integrator
-//    steps. Only D_3L(N), D_5L(N) enter, so the completion of S x_N, S y_N, Δ_+y_N matters only
-//    for Lagrangians whose ∂L/∂ẋ or ∂L/∂D^α_−x depends on them.
+//    steps. Only D_3L(N), D_5L(N) enter, so the completion of S x_N, S y_N and the ẏ slot matters
+//    only for Lagrangians whose ∂L/∂ẋ or ∂L/∂D^α_−x depends on them.
 //
 // kPrinted's equations are not a consistent discretisation at t = b (the last kinetic interval
 // [t_{N−1}, t_N] of x is missing from A_d, so its x-equation at k = N − 1 imposes a natural
@@ -101,7 +105,7 @@ Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic> discrete_phase_points(
       z(i, k) = last ? x(i, k) : T(T(0.5) * (x(i, k) + x(i, k + 1)));
       z(d + i, k) = last ? y(i, k) : T(T(0.5) * (y(i, k) + y(i, k + 1)));
       z(2 * d + i, k) = k == 0 ? T(T(0.0) * x(i, k)) : T((x(i, k) - x(i, k - 1)) * T(inv_h));
-      z(3 * d + i, k) = last ? T(T(0.0) * y(i, k)) : T((y(i, k) - y(i, k + 1)) * T(inv_h));
+      z(3 * d + i, k) = last ? T(T(0.0) * y(i, k)) : T((y(i, k + 1) - y(i, k)) * T(inv_h));
       // Δ^α_−x_k and Δ^α_+y_k: the causal sum, and the causal sum of the reversed y.
       T sx = T(0.0) * x(i, k), sy = T(0.0) * y(i, k);
       const auto ku = static_cast<std::size_t>(k), nu = static_cast<std::size_t>(n);
@@ -151,7 +155,7 @@ double action_sum(const Lagrangian& lagrangian, const Sequence& x, const Sequenc
 /// The residual of `DiscFracEL` at the interior points k = 1..N−1 (columns 1..N−1; columns 0 and
 /// N are zero), for the chosen action sum:
 ///   x-equation_k = ½(D_1L(k) + D_1L(k−1)) + Δ_+D_3L(k) + Δ^α_−D_6L(k),
-///   y-equation_k = ½(D_2L(k) + D_2L(k−1)) + Δ_−D_4L(k) + Δ^α_+D_5L(k),
+///   y-equation_k = ½(D_2L(k) + D_2L(k−1)) − Δ_−D_4L(k) + Δ^α_+D_5L(k),
 /// with D_3L(N) = D_5L(N) = 0 for kPrinted and the completed point for kExtended. Their sum at k
 /// is (1/h) ∂A/∂η_k along the restricted variation δx_k = δy_k = η_k, exactly.
 struct DiscreteElResidual {

@@ -61,6 +61,8 @@ class BlockHistory {
   [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
   /// "direct", "fast" or "local": what method.history = "auto" chose (summary.json's history).
   [[nodiscard]] virtual std::string_view kind() const = 0;
+  /// kind(), memory_bytes() and, for the fast history, K and n0 (history.hpp).
+  [[nodiscard]] virtual HistoryReport report() const { return {kind(), memory_bytes(), 0, 0}; }
   /// Threads for the work over degrees of freedom (0 = OpenMP's default). Only the fast history
   /// uses them (from kParallelWork multiply–adds per step); the direct one ignores it.
   virtual void set_threads(int threads) { static_cast<void>(threads); }
@@ -135,6 +137,9 @@ class FastBlockHistory final : public BlockHistory {
   [[nodiscard]] std::size_t window() const { return static_cast<std::size_t>(window_); }
   /// K, the number of tail terms (recursions per degree of freedom).
   [[nodiscard]] std::size_t terms() const { return static_cast<std::size_t>(decay_.size()); }
+  [[nodiscard]] HistoryReport report() const override {
+    return {kind(), memory_bytes(), terms(), window()};
+  }
 
  private:
   std::shared_ptr<const RkcqTail> tail_;

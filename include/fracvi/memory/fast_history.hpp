@@ -71,6 +71,9 @@ class FastHistory final : public History {
   [[nodiscard]] std::size_t window() const { return fit_->window; }
   /// K, the number of exponentials (recursions per degree of freedom).
   [[nodiscard]] std::size_t terms() const { return fit_->terms(); }
+  [[nodiscard]] HistoryReport report() const override {
+    return {kind(), memory_bytes(), terms(), window()};
+  }
 
  private:
   std::shared_ptr<const ExponentialFit> fit_;

@@ -32,6 +32,17 @@
 
 namespace fracvi {
 
+/// What a run's damping memory is (Solution, summary.json): its implementation ("direct",
+/// "fast", "local", "fft" or "none": what method.history = "auto" chose), its bytes, and for a
+/// fast history the number K of exponentials (recursions per degree of freedom) and the window
+/// n0 of exactly weighted recent lags (0 for the others).
+struct HistoryReport {
+  std::string_view kind = "none";
+  std::size_t bytes = 0;
+  std::size_t exponentials = 0;
+  std::size_t window = 0;
+};
+
 class History {
  public:
   virtual ~History() = default;
@@ -58,6 +69,8 @@ class History {
   [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
   /// "direct", "fast" or "local": what method.history = "auto" chose (summary.json's history).
   [[nodiscard]] virtual std::string_view kind() const = 0;
+  /// kind(), memory_bytes() and, for the fast history, K and n0.
+  [[nodiscard]] virtual HistoryReport report() const { return {kind(), memory_bytes(), 0, 0}; }
   /// Threads for the work over degrees of freedom (0 = OpenMP's default). Only the fast history
   /// has enough work per step to use them; the others ignore it.
   virtual void set_threads(int threads) { static_cast<void>(threads); }

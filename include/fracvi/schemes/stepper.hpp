@@ -26,6 +26,7 @@
 #include "fracvi/core/matrix.hpp"
 #include "fracvi/core/state_archive.hpp"
 #include "fracvi/core/status.hpp"
+#include "fracvi/memory/history.hpp"
 #include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/schemes/options.hpp"
 
@@ -79,11 +80,10 @@ class Stepper {
 
   /// The factorisation of the implicit step: kDense, kBanded or kSparse.
   [[nodiscard]] virtual LinearSolver linear_solver() const = 0;
-  /// Bytes kept by the memory of the damping term (0 without one).
-  [[nodiscard]] virtual std::size_t history_bytes() const { return 0; }
-  /// The damping memory's implementation: "direct", "fast", "local" or "none" (what
-  /// method.history = "auto" chose; Solution::history).
-  [[nodiscard]] virtual std::string_view history_kind() const { return "none"; }
+  /// The damping memory: implementation, bytes, and K and n0 of a fast history (memory/history.hpp;
+  /// Solution::history, history_bytes, history_exponentials, history_window). Kind "none" and 0
+  /// bytes without one.
+  [[nodiscard]] virtual HistoryReport history() const { return {}; }
   /// Saves or restores everything the next steps depend on (core/state_archive.hpp): the state at
   /// step k, the step index, the damping memory, the energy account and any predictor carried
   /// from step to step, so that a restored stepper continues bit-for-bit. A scheme that supports
