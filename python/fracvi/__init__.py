@@ -546,6 +546,9 @@ class Problem:
                              doc='method.linear_solver: "auto", "dense", "banded" or "sparse"')
     load = property(lambda self: self._spec.load,
                     doc='method.load: "pointwise" or "moments" (how the forcing enters)')
+    split = property(lambda self: self._spec.split,
+                     doc='method.split: "taylor" or "series" (what the Lobatto schemes take out '
+                         'of x at t0)')
     error_estimate = property(lambda self: self._spec.error_estimate,
                               doc='method.error_estimate: "richardson" or "none"')
     tolerance = property(lambda self: self._spec.tolerance,
@@ -847,7 +850,8 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=None, diagnostic
     newton_tolerance (relative), newton_max_iterations, history_tolerance, abs_tolerance and rel_tolerance (the
     adaptive schemes' error tolerances), linear_solver ("auto",
     "dense", "banded", "sparse"), load ("pointwise" or "moments": the forcing at the
-    quadrature points or its exact moments), error_estimate ("richardson": the Solution's
+    quadrature points or its exact moments), split ("taylor" or "series": what the Lobatto
+    schemes take out of x at t0), error_estimate ("richardson": the Solution's
     error_estimate from companion runs with N/2 and N/4 steps, about 0.75 of the cost more; or
     "none"), tolerance (> 0: N doubled from steps until error_estimate <= tolerance, up to
     max_steps; summary()["tolerance_runs"] lists the runs), threads (0: all cores), every (store every n-th state)) may be

@@ -1085,6 +1085,7 @@ void bind(py::module_& m) {
       .def_readonly("rel_tolerance", &ProblemSpec::rel_tolerance)
       .def_readonly("linear_solver", &ProblemSpec::linear_solver)
       .def_readonly("load", &ProblemSpec::load)
+      .def_readonly("split", &ProblemSpec::split)
       .def_readonly("error_estimate", &ProblemSpec::error_estimate)
       .def_readonly("tolerance", &ProblemSpec::tolerance)
       .def_readonly("max_steps", &ProblemSpec::max_steps)

@@ -282,7 +282,7 @@ def test_keywords_are_the_file_keys(tmp_path):
     values = dict(scheme="fvi-bdf2", newton_tolerance=1e-11, newton_max_iterations=40,
                   history="direct", history_tolerance=1e-9, abs_tolerance=1e-7,
                   rel_tolerance=1e-6, linear_solver="dense", load="pointwise",
-                  error_estimate="richardson", tolerance=10.0, max_steps=123456, threads=1,
+                  split="taylor", error_estimate="richardson", tolerance=10.0, max_steps=123456, threads=1,
                   every=2, mirror="off", times=[0.5, 1.5], format="npz")
     assert {r["key"] for r in rows} == set(values)
     problem = fracvi.Problem.from_toml(PROBLEM)

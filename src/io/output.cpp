@@ -80,6 +80,7 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   o.rel_tolerance = spec.rel_tolerance;
   o.linear_solver = *parse_linear_solver(spec.linear_solver);
   o.load = *parse_forcing_load(spec.load);
+  o.split = *parse_taylor_split(spec.split);
   o.error_estimate = *parse_error_estimate(spec.error_estimate);
   o.tolerance = spec.tolerance;
   o.max_steps = static_cast<std::size_t>(spec.max_steps);

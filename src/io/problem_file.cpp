@@ -717,6 +717,14 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
              "= \"" + p.load + "\" is not one of " + joined(loads) + did_you_mean(p.load, loads));
     }
   }
+  if (const auto* n = r.find("method", "split")) {
+    p.split = r.string(*n, "method.split");
+    if (!parse_taylor_split(p.split)) {
+      const std::vector<std::string> splits{"taylor", "series"};
+      r.fail("method.split", "= \"" + p.split + "\" is not one of " + joined(splits) +
+                                 did_you_mean(p.split, splits));
+    }
+  }
   if (const auto* n = r.find("method", "error_estimate")) {
     p.error_estimate = r.string(*n, "method.error_estimate");
     if (!parse_error_estimate(p.error_estimate)) {

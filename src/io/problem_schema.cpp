@@ -209,6 +209,10 @@ std::vector<ProblemField> make_schema() {
       {"method", "load", "string", in_quotes(d.load),
        "how the forcing enters: pointwise or moments", FRACVI_BINDING(IntegratorOptions, load),
        [](P p) { return Json(p.load); }},
+      {"method", "split", "string", in_quotes(d.split),
+       "what the Lobatto schemes take out of x at t0: taylor (x0 + t v0, from the memory) or "
+       "series (also the solution's fractional Taylor terms; linear problems without forcing)",
+       FRACVI_BINDING(IntegratorOptions, split), [](P p) { return Json(p.split); }},
       {"method", "error_estimate", "string", in_quotes(d.error_estimate),
        "a-posteriori error estimate: richardson (runs with N/2, N/4 steps) or none",
        FRACVI_BINDING(IntegratorOptions, error_estimate),

@@ -45,6 +45,7 @@
 #include <vector>
 
 #include "forcing_moments.hpp"
+#include "fractional_series.hpp"
 #include "fracvi/core/error.hpp"
 #include "fracvi/fractional/runge_kutta_cq.hpp"
 #include "fracvi/memory/block_history.hpp"
@@ -490,6 +491,8 @@ class LobattoStepper final : public Stepper {
   [[nodiscard]] HistoryReport history() const override {
     return history_ ? history_->report() : HistoryReport{};
   }
+  /// The step index k (SeriesShiftStepper maps the state at t_k).
+  [[nodiscard]] std::size_t step_index() const { return n_; }
   [[nodiscard]] const Eigen::MatrixXd* stage_values() const override {
     return n_ > 0 ? &cur_.stages : nullptr;
   }
@@ -1043,9 +1046,226 @@ int lobatto_order(int s, const MechanicalModel& model) {
   return 2;
 }
 
+// ---------------------------------------------------------------------------------------------
+// method.split = "series" (fvi_lobatto.md §13.3): the change of variables x = w + S(t), S the
+// fractional Taylor terms c_γ τ^γ (1 < γ ≤ 2s − 1, τ = t − t_0) of the solution of the linear
+// problem M x'' + R D^β x + K x + g_0 = 0, computed from the data and the equation
+// (fractional_series.hpp). The Lobatto stepper integrates the remainder w — same M, R, U, data
+// (S(t_0) = Ṡ(t_0) = 0), Taylor split P — under the forcing
+//
+//   f_w(t) = −(M S''(t) + R D^β S(t) + K S(t)) = −Σ_γ [γ(γ − 1) M c_γ τ^{γ−2} + g(γ) R c_γ τ^{γ−β}
+//            + K c_γ τ^γ]
+//
+// by its exact moments (method.load = "moments": tanh–sinh on the first interval, where
+// τ^{γ−2} may be singular). w = x − P − S vanishes to order > 2s − 1 at t_0, so neither the memory
+// nor the Galerkin part meets the non-smooth terms. The state is reported for x: x_k = w_k +
+// S(t_k), v_k = v^w_k + Ṡ(t_k), p_k = p^w_k + M Ṡ(t_k); the energy account is the remainder's,
+// E_w + W_w − E_{w,0} (W reported as W_w + (E_w − E_x) − (E_{w,0} − E_{x,0})), and the mirror run
+// is the remainder's, compared with x − S.
+
+struct ShiftLoad {
+  double exponent = 0.0;  // of τ
+  Eigen::VectorXd value;  // −(the term's coefficient vector)
+};
+
+// The series of `problem` (validated: linear, no force, terms bounded on [t_0, t_end]).
+std::vector<SeriesTerm> series_for(int s, const InitialValueProblem& problem) {
+  const char* const field = "method.split = \"series\"";
+  const MechanicalModel& model = problem.model;
+  if (model.forcing || model.state_force) {
+    throw ValidationError(std::string(field) +
+                          " needs the expansion of every force at t0, which a formula does not "
+                          "give: only for problems without model.force (this one has a force); "
+                          "use \"taylor\"");
+  }
+  const Potential* potential = model.potential.get();
+  if (potential != nullptr &&
+      (!potential->has_constant_hessian() || potential->is_time_dependent())) {
+    throw ValidationError(std::string(field) +
+                          " is for linear problems (a time-independent potential with a constant "
+                          "Hessian, e.g. model.stiffness): the potential of this problem is not; "
+                          "use \"taylor\"");
+  }
+  const Eigen::Index d = model.dimension();
+  const double beta = model.damping_order();
+  if (model.is_undamped() || beta == 0.0) return {};  // no memory: nothing to remove
+  Eigen::MatrixXd stiffness = Eigen::MatrixXd::Zero(d, d);
+  Eigen::VectorXd constant_force = Eigen::VectorXd::Zero(d);
+  if (potential != nullptr) {
+    potential->hessian(problem.x0, problem.t0, stiffness);
+    potential->gradient(Eigen::VectorXd::Zero(d), problem.t0, constant_force);
+  }
+  std::vector<SeriesTerm> terms = fractional_series(
+      model.mass.symmetric_part().to_dense(), model.damping.symmetric_part().to_dense(), stiffness,
+      constant_force, beta, model.convention == Convention::kCaputo, problem.x0, problem.v0,
+      2.0 * s - 1.0);
+  // S grows like τ^{2s−1}: x = w + S then adds large numbers, and loses their round-off. Refused
+  // when a term at t_end exceeds 10³ times the Taylor polynomial there.
+  const double span = problem.t_end - problem.t0;
+  const double taylor_size =
+      std::max({problem.x0.cwiseAbs().maxCoeff(), span * problem.v0.cwiseAbs().maxCoeff(),
+                std::numeric_limits<double>::min()});
+  for (const SeriesTerm& term : terms) {
+    const double size = term.coefficient.cwiseAbs().maxCoeff() * std::pow(span, term.exponent);
+    if (!(size <= 1e3 * taylor_size)) {
+      throw ValidationError(
+          std::string(field) + ": the series term of exponent " + format_number(term.exponent) +
+          " reaches " + format_number(size) +
+          " at time.t_end, more than 10^3 times the Taylor polynomial (" +
+          format_number(taylor_size) +
+          "): its round-off would cost more than the series gains; shorten the interval or use "
+          "\"taylor\"");
+    }
+  }
+  return terms;
+}
+
+class SeriesShiftStepper final : public Stepper {
+ public:
+  SeriesShiftStepper(int stages, const InitialValueProblem& problem,
+                     const IntegratorOptions& options)
+      : problem_(problem),
+        diagnostics_(options.diagnostics),
+        terms_(series_for(stages, problem)),
+        remainder_(remainder_problem(problem, terms_)),
+        mass_(problem.model.mass.symmetric_part()),
+        c_(lobatto_iiic(stages).c) {
+    IntegratorOptions inner = options;
+    inner.split = TaylorSplit::kTaylor;
+    inner.load = ForcingLoad::kMoments;
+    stepper_ = std::make_unique<LobattoStepper>(stages, remainder_, inner);
+    const Eigen::Index d = problem.model.dimension();
+    for (Eigen::VectorXd* v : {&x_, &v_, &p_, &shift_, &rate_, &scratch_}) v->setZero(d);
+    stages_.setZero(d, stages);
+    report(0);
+    energy_offset_ = diagnostics_ ? energy_gap() : 0.0;
+    work_ = stepper_->work();  // 0 (NaN without diagnostics)
+  }
+
+  [[nodiscard]] const Eigen::VectorXd& position() const override { return x_; }
+  [[nodiscard]] const Eigen::VectorXd& velocity() const override { return v_; }
+  [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
+  [[nodiscard]] double work() const override { return work_; }
+  [[nodiscard]] double supplied_work() const override {
+    return diagnostics_ ? 0.0 : kNaN;  // no force, U independent of t (series_for)
+  }
+  [[nodiscard]] LinearSolver linear_solver() const override { return stepper_->linear_solver(); }
+  [[nodiscard]] std::size_t history_bytes() const override { return stepper_->history_bytes(); }
+  [[nodiscard]] std::string_view history_kind() const override { return stepper_->history_kind(); }
+  [[nodiscard]] const Eigen::MatrixXd* stage_values() const override {
+    return stepper_->stage_values() != nullptr ? &stages_ : nullptr;
+  }
+  void visit_state(StateArchive& archive) override {
+    stepper_->visit_state(archive);
+    if (archive.loading()) report(stepper_->step_index());
+  }
+  [[nodiscard]] double mirror_error(const RowMatrixXd& x,
+                                    std::span<const std::size_t> steps) const override {
+    RowMatrixXd w = x;
+    Eigen::VectorXd shift(x.cols()), rate(x.cols());
+    for (Eigen::Index i = 0; i < w.rows() && static_cast<std::size_t>(i) < steps.size(); ++i) {
+      evaluate(problem_.time(static_cast<double>(steps[static_cast<std::size_t>(i)])), shift, rate);
+      w.row(i) -= shift.transpose();
+    }
+    return static_cast<const Stepper&>(*stepper_).mirror_error(w, steps);
+  }
+
+ private:
+  static InitialValueProblem remainder_problem(const InitialValueProblem& problem,
+                                               const std::vector<SeriesTerm>& terms) {
+    InitialValueProblem remainder = problem;
+    if (terms.empty()) return remainder;
+    const MechanicalModel& model = problem.model;
+    const double beta = model.damping_order();
+    const bool caputo = model.convention == Convention::kCaputo;
+    const Eigen::Index d = model.dimension();
+    Eigen::MatrixXd stiffness = Eigen::MatrixXd::Zero(d, d);
+    if (model.potential) model.potential->hessian(problem.x0, problem.t0, stiffness);
+    const Eigen::MatrixXd mass = model.mass.symmetric_part().to_dense();
+    const Eigen::MatrixXd damping = model.damping.symmetric_part().to_dense();
+    std::vector<ShiftLoad> loads;
+    for (const SeriesTerm& term : terms) {
+      const double gamma = term.exponent;
+      loads.push_back({gamma - 2.0, -gamma * (gamma - 1.0) * (mass * term.coefficient)});
+      const double factor = power_derivative_factor(gamma, beta, caputo);
+      if (factor != 0.0) loads.push_back({gamma - beta, -factor * (damping * term.coefficient)});
+      loads.push_back({gamma, -(stiffness * term.coefficient)});
+    }
+    const double t0 = problem.t0;
+    remainder.model.forcing = [loads, t0](double t, Eigen::Ref<Eigen::VectorXd> out) {
+      out.setZero();
+      const double tau = std::max(t - t0, 0.0);
+      for (const ShiftLoad& load : loads) out += std::pow(tau, load.exponent) * load.value;
+    };
+    return remainder;
+  }
+
+  // S(t) and Ṡ(t).
+  void evaluate(double t, Eigen::VectorXd& shift, Eigen::VectorXd& rate) const {
+    shift.setZero();
+    rate.setZero();
+    const double tau = std::max(t - problem_.t0, 0.0);
+    for (const SeriesTerm& term : terms_) {
+      shift += std::pow(tau, term.exponent) * term.coefficient;
+      rate += (term.exponent * std::pow(tau, term.exponent - 1.0)) * term.coefficient;
+    }
+  }
+
+  // x, v, p (and the stage values) of step k from the remainder's.
+  void report(std::size_t k) {
+    evaluate(problem_.time(static_cast<double>(k)), shift_, rate_);
+    x_ = stepper_->position() + shift_;
+    v_ = stepper_->velocity() + rate_;
+    mass_.multiply(rate_, scratch_);
+    p_ = stepper_->momentum() + scratch_;
+    if (const Eigen::MatrixXd* w = stepper_->stage_values(); w != nullptr && k > 0) {
+      const double start = problem_.time(static_cast<double>(k - 1));
+      const double h = problem_.step_size();
+      for (Eigen::Index a = 0; a < stages_.cols(); ++a) {
+        evaluate(start + c_(a) * h, scratch_, rate_);
+        stages_.col(a) = w->col(a) + scratch_;
+      }
+      evaluate(problem_.time(static_cast<double>(k)), shift_, rate_);
+    }
+    work_ = diagnostics_ ? stepper_->work() + energy_gap() - energy_offset_ : kNaN;
+  }
+
+  // E_w − E_x at the current step (½ vᵀp + U).
+  [[nodiscard]] double energy_gap() const {
+    const double t = problem_.time(static_cast<double>(stepper_->step_index()));
+    const Potential* u = problem_.model.potential.get();
+    const double remainder = 0.5 * stepper_->velocity().dot(stepper_->momentum()) +
+                             (u != nullptr ? u->value(stepper_->position(), t) : 0.0);
+    const double full = 0.5 * v_.dot(p_) + (u != nullptr ? u->value(x_, t) : 0.0);
+    return remainder - full;
+  }
+
+  Status advance() override {
+    const Status status = stepper_->step();
+    set_iterations(stepper_->last_iterations());
+    if (status != Status::kSuccess) return fail(status, "%s", stepper_->failure_message());
+    report(stepper_->step_index());
+    return Status::kSuccess;
+  }
+
+  const InitialValueProblem& problem_;
+  bool diagnostics_;
+  std::vector<SeriesTerm> terms_;
+  InitialValueProblem remainder_;  // the stepper keeps a reference: declared before it
+  ModelMatrix mass_;
+  Eigen::VectorXd c_;
+  std::unique_ptr<LobattoStepper> stepper_;
+  Eigen::VectorXd x_, v_, p_, shift_, rate_, scratch_;
+  Eigen::MatrixXd stages_;
+  double work_ = 0.0, energy_offset_ = 0.0;
+};
+
 template <int S>
 std::unique_ptr<Stepper> make_lobatto(const InitialValueProblem& problem,
                                       const IntegratorOptions& options) {
+  if (options.split == TaylorSplit::kSeries) {
+    return std::make_unique<SeriesShiftStepper>(S, problem, options);
+  }
   return std::make_unique<LobattoStepper>(S, problem, options);
 }
 
@@ -1069,6 +1289,7 @@ SchemeInfo lobatto_row(std::string_view name, std::string_view summary, std::str
       .fast_history = true,
       .momentum_quadrature = CqScheme::kGrunwaldLetnikov,  // block weights summable
       .forcing_moments = true,
+      .series_split = true,
       .checkpoints = true,
       .no_state_force = "",
       .applies_to = "0 <= 2alpha < 2",

@@ -31,6 +31,16 @@ std::string_view to_string(ForcingLoad load) {
   return load == ForcingLoad::kMoments ? "moments" : "pointwise";
 }
 
+std::optional<TaylorSplit> parse_taylor_split(std::string_view name) {
+  if (name == "taylor") return TaylorSplit::kTaylor;
+  if (name == "series") return TaylorSplit::kSeries;
+  return std::nullopt;
+}
+
+std::string_view to_string(TaylorSplit split) {
+  return split == TaylorSplit::kSeries ? "series" : "taylor";
+}
+
 std::optional<ErrorEstimateKind> parse_error_estimate(std::string_view name) {
   if (name == "richardson") return ErrorEstimateKind::kRichardson;
   if (name == "none") return ErrorEstimateKind::kNone;
@@ -149,6 +159,12 @@ void check_applicable(const InitialValueProblem& problem, const Method& method,
     throw ValidationError("method.load = \"moments\" is not available for method.scheme = \"" +
                           std::string(info.name) + "\" (schemes with it: " + with +
                           "); use \"pointwise\"");
+  }
+  if (options.split == TaylorSplit::kSeries && !info.series_split) {
+    const std::string with = scheme_names_with(&SchemeInfo::series_split);
+    throw ValidationError("method.split = \"series\" is not available for method.scheme = \"" +
+                          std::string(info.name) + "\" (schemes with it: " + with +
+                          "); use \"taylor\"");
   }
   const StabilityBound bound = info.stability(problem);
   if (bound.stable) return;

@@ -6,7 +6,7 @@
 // Covered: linear (constant Hessian, one solve per step) and nonlinear (Newton) paths, local
 // (α = 1/2, 1), direct and fast (α = 0.75) histories, forcing, R = 0, a fixed-size autodiff
 // potential, large FPUT chains on the banded path with OpenMP threads, a formula state force
-// g(x, v, t). Control: a dynamic-size
+// g(x, v, t), the Lobatto schemes with method.split = "series". Control: a dynamic-size
 // autodiff potential does allocate, so the counter is live.
 #include <gtest/gtest.h>
 
@@ -128,6 +128,22 @@ TEST_F(NoAllocation, StateForceFormula) {
           2, std::vector<std::string>{"0.8*(1 - x1^2)*v1 - 0.1*x2*v2", "-0.3*v1*v2 + sin(t)"});
       IntegratorOptions options;
       options.history = alpha == 0.5 ? HistoryKind::kAuto : HistoryKind::kFast;
+      Integrator integ(p, *parse_method(name), options);
+      EXPECT_EQ(allocations_while_stepping(integ), 0u) << name << " alpha = " << alpha;
+    }
+  }
+}
+
+// method.split = "series" (fvi_lobatto.md §13.3): the remainder's stepper with its power-law
+// forcing by exact moments, and the state mapped back to x every step.
+TEST_F(NoAllocation, LobattoSeriesSplit) {
+  for (const char* name : {"fvi-lobatto2", "fvi-lobatto3", "fvi-lobatto4"}) {
+    for (const double alpha : {0.3, 0.75}) {
+      InitialValueProblem p =
+          base(alpha, make_quadratic_potential(Eigen::MatrixXd{{3.0, -1.0}, {-1.0, 2.0}}));
+      p.model.forcing = nullptr;
+      IntegratorOptions options;
+      options.split = TaylorSplit::kSeries;
       Integrator integ(p, *parse_method(name), options);
       EXPECT_EQ(allocations_while_stepping(integ), 0u) << name << " alpha = " << alpha;
     }

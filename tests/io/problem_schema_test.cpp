@@ -189,6 +189,7 @@ std::vector<std::string> differences(const fracvi::ProblemSpec& a, const fracvi:
   check(a.rel_tolerance == b.rel_tolerance, "rel_tolerance");
   check(a.linear_solver == b.linear_solver, "linear_solver");
   check(a.load == b.load, "load");
+  check(a.split == b.split, "split");
   check(a.error_estimate == b.error_estimate, "error_estimate");
   check(a.mirror == b.mirror, "mirror");
   check(a.tolerance == b.tolerance, "tolerance");
@@ -348,6 +349,7 @@ const std::vector<Case>& cases() {
       {"method.rel_tolerance", "", [](Json& j) { j["method"]["rel_tolerance"] = 3e-6; }},
       {"method.linear_solver", "", [](Json& j) { j["method"]["linear_solver"] = "dense"; }},
       {"method.load", "", [](Json& j) { j["method"]["load"] = "moments"; }},
+      {"method.split", "", [](Json& j) { j["method"]["split"] = "series"; }},
       {"method.error_estimate", "", [](Json& j) { j["method"]["error_estimate"] = "none"; }},
       {"method.mirror", "", [](Json& j) { j["method"]["mirror"] = "off"; }},
       {"method.tolerance", "", [](Json& j) { j["method"]["tolerance"] = 1e-5; }},
@@ -476,8 +478,8 @@ TEST(ProblemWriters, SetOverridesAreCheckedAgainstTheSchema) {
       message("method.newton_tolerence=1e-9"),
       "<built-in>: --set method.newton_tolerence: unknown key (did you mean 'newton_tolerance'?); "
       "valid in [method]: scheme, newton_tolerance, newton_max_iterations, history, "
-      "history_tolerance, abs_tolerance, rel_tolerance, linear_solver, load, error_estimate, "
-      "mirror, tolerance, max_steps, threads");
+      "history_tolerance, abs_tolerance, rel_tolerance, linear_solver, load, split, "
+      "error_estimate, mirror, tolerance, max_steps, threads");
   EXPECT_EQ(message("output.every.n=1"),
             "<built-in>: --set output.every.n: unknown section [output.every]; valid sections: "
             "[model], [model.chain], [initial], [boundary], [time], [method], [output], "

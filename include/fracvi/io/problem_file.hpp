@@ -114,6 +114,8 @@ struct ProblemSpec {
   std::string linear_solver = std::string(to_string(IntegratorOptions{}.linear_solver));
   /// "pointwise" or "moments" (how the forcing enters)
   std::string load = std::string(to_string(IntegratorOptions{}.load));
+  /// "taylor" or "series" (what the Lobatto schemes take out of x at t0)
+  std::string split = std::string(to_string(IntegratorOptions{}.split));
   /// "richardson" or "none" (the a-posteriori error estimate of fracvi run / fracvi.integrate)
   std::string error_estimate = std::string(to_string(IntegratorOptions{}.error_estimate));
   /// > 0: choose N by doubling time.steps until the error estimate is <= tolerance; 0: off

@@ -39,6 +39,21 @@ enum class ForcingLoad {
 std::optional<ForcingLoad> parse_forcing_load(std::string_view name);
 std::string_view to_string(ForcingLoad load);
 
+/// What the Lobatto schemes take out of x at t_0 (IntegratorOptions::split;
+/// docs/theory/fvi_lobatto.md §2 and §13.3).
+enum class TaylorSplit {
+  /// The Taylor polynomial P(t) = x_0 + (t − t_0) v_0: the damping memory acts on x − P and
+  /// D^{2α}P enters by its exact moments (the split of every CQ scheme).
+  kTaylor,
+  /// Also the solution's fractional Taylor terms S = Σ c_γ (t − t_0)^γ, 1 < γ ≤ 2s − 1, computed
+  /// from the data and the equation (linear problems without forcing only): the scheme integrates
+  /// x − S under the forcing −(M S'' + R D^{2α}S + K S) (exact moments), so that neither its memory
+  /// nor its Galerkin part meets the non-smooth terms at t_0 (the start-up error goes).
+  kSeries,
+};
+std::optional<TaylorSplit> parse_taylor_split(std::string_view name);
+std::string_view to_string(TaylorSplit split);
+
 /// The a-posteriori estimate of the global error of a run (IntegratorOptions::error_estimate;
 /// fracvi/analysis/error_estimate.hpp).
 enum class ErrorEstimateKind {
@@ -77,6 +92,9 @@ struct IntegratorOptions {
   /// How the forcing enters (ForcingLoad); kMoments is refused for schemes without it
   /// (SchemeInfo::forcing_moments).
   ForcingLoad load = ForcingLoad::kPointwise;
+  /// What the damping memory subtracts (TaylorSplit); kSeries is refused for schemes without it
+  /// (SchemeInfo::series_split) and for problems outside its domain.
+  TaylorSplit split = TaylorSplit::kTaylor;
   /// The error estimate the whole-run drivers (`fracvi run`, Python's fracvi.integrate) add to
   /// the solution with estimate_error() (fracvi/analysis/error_estimate.hpp); the Integrator and
   /// integrate() themselves run the one trajectory only.

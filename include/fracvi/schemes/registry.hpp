@@ -66,6 +66,8 @@ struct SchemeInfo {
   CqScheme momentum_quadrature = CqScheme::kGrunwaldLetnikov;
   /// method.load = "moments" (ForcingLoad::kMoments) is available.
   bool forcing_moments = false;
+  /// method.split = "series" (TaylorSplit::kSeries) is available.
+  bool series_split = false;
   /// The step is chosen by an error controller from method.abs_tolerance and
   /// method.rel_tolerance (dopri5); the grid step h only samples its dense output, so the error
   /// follows the tolerances and the declared order is the order in the tolerance, not in h.
