@@ -1150,8 +1150,7 @@ class SeriesShiftStepper final : public Stepper {
     return diagnostics_ ? 0.0 : kNaN;  // no force, U independent of t (series_for)
   }
   [[nodiscard]] LinearSolver linear_solver() const override { return stepper_->linear_solver(); }
-  [[nodiscard]] std::size_t history_bytes() const override { return stepper_->history_bytes(); }
-  [[nodiscard]] std::string_view history_kind() const override { return stepper_->history_kind(); }
+  [[nodiscard]] HistoryReport history() const override { return stepper_->history(); }
   [[nodiscard]] const Eigen::MatrixXd* stage_values() const override {
     return stepper_->stage_values() != nullptr ? &stages_ : nullptr;
   }
