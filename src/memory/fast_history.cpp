@@ -29,6 +29,114 @@ std::shared_ptr<const ExponentialFit> checked_fit(std::shared_ptr<const Exponent
   return fit;
 }
 
+#if defined(__GNUC__) && !defined(__clang__)
+#define FRACVI_INDEPENDENT_ITERATIONS _Pragma("GCC ivdep")
+#else
+#define FRACVI_INDEPENDENT_ITERATIONS
+#endif
+
+// One block of rows of FastHistory::push(): the K recursions Y_j ← e^{−λ_j} Y_j + x̃_{k−n0} with
+// the tail Σ_j w_j Y_j, then the sum = tail + the window's exact weights against the last n0
+// values. Plain loops over restrict pointers (the Eigen block expressions of the same loop ran at
+// half the speed; Eigen's gemv for the window is a separate pass over the block).
+struct FastHistoryBlock {
+  Eigen::Index rows, terms, state_stride, window, ring_stride;
+  double* state;
+  double* tail;
+  double* sum;
+  const double* leaving;   // x̃_{k−n0}: ring column `slot`, overwritten by x̃_k below
+  const double* entering;  // x̃_k
+  double* slot;            // its two ring columns
+  double* slot_copy;
+  const double* window_first;  // ring column of x̃_{k−n0+1}; the window's columns follow it
+  const double* decay;
+  const double* weights;
+  const double* head_reversed;
+};
+
+// This kernel is most of a step of a large system (bench/RESULTS.md). The README's build is
+// portable x86-64 (SSE2, no FMA), so the kernel carries an x86-64-v3 clone (AVX2 + FMA) that the
+// dynamic loader picks on CPUs that have it (GCC's target_clones: an ifunc resolved once at load
+// time, no per-call dispatch); other compilers and architectures get the portable loop.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__AVX2__)
+__attribute__((target_clones("default", "arch=x86-64-v3")))
+#endif
+void push_block(const FastHistoryBlock& blk) {
+  // The restrict pointers live in the scope of one loop each: x̃_{k−n0} and the slot x̃_k takes
+  // are the same memory, read by the first loop and written by the second. Four recursions (and
+  // four window columns) share one load and store of the tail (the sum): the loop is bound by
+  // loads and stores, not by multiply–adds (perf: one recursion per pass ran at ≈ 2 stores per
+  // multiply–add pair).
+  const Eigen::Index n = blk.rows, terms = blk.terms, stride = blk.state_stride;
+  double* const state = blk.state;
+  if (terms > 0) {
+    double* __restrict tail = blk.tail;
+    const double* __restrict x = blk.leaving;
+    for (Eigen::Index i = 0; i < n; ++i) tail[i] = 0.0;
+    Eigen::Index j = 0;
+    for (; j + 4 <= terms; j += 4) {
+      // Four columns of one array: GCC does not vectorise them as restrict pointers ("no vectype"),
+      // but does with the promise that the iterations are independent.
+      double* y0 = state + j * stride;
+      double* y1 = state + (j + 1) * stride;
+      double* y2 = state + (j + 2) * stride;
+      double* y3 = state + (j + 3) * stride;
+      const double a0 = blk.decay[j], a1 = blk.decay[j + 1], a2 = blk.decay[j + 2],
+                   a3 = blk.decay[j + 3];
+      const double w0 = blk.weights[j], w1 = blk.weights[j + 1], w2 = blk.weights[j + 2],
+                   w3 = blk.weights[j + 3];
+      FRACVI_INDEPENDENT_ITERATIONS
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const double v0 = a0 * y0[i] + x[i], v1 = a1 * y1[i] + x[i];
+        const double v2 = a2 * y2[i] + x[i], v3 = a3 * y3[i] + x[i];
+        y0[i] = v0;
+        y1[i] = v1;
+        y2[i] = v2;
+        y3[i] = v3;
+        tail[i] += (w0 * v0 + w1 * v1) + (w2 * v2 + w3 * v3);
+      }
+    }
+    for (; j < terms; ++j) {
+      double* __restrict y = state + j * stride;
+      const double a = blk.decay[j], w = blk.weights[j];
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const double yi = a * y[i] + x[i];
+        y[i] = yi;
+        tail[i] += w * yi;
+      }
+    }
+  }
+  {
+    const double* __restrict x = blk.entering;
+    double* __restrict slot = blk.slot;
+    double* __restrict slot_copy = blk.slot_copy;
+    for (Eigen::Index i = 0; i < n; ++i) slot[i] = slot_copy[i] = x[i];
+  }
+  {
+    double* __restrict sum = blk.sum;
+    const double* __restrict tail = blk.tail;
+    for (Eigen::Index i = 0; i < n; ++i) sum[i] = tail[i];
+    const Eigen::Index ld = blk.ring_stride;
+    const double* head = blk.head_reversed;
+    Eigen::Index c = 0;
+    for (; c + 4 <= blk.window; c += 4) {
+      const double* c0 = blk.window_first + c * ld;
+      const double* c1 = blk.window_first + (c + 1) * ld;
+      const double* c2 = blk.window_first + (c + 2) * ld;
+      const double* c3 = blk.window_first + (c + 3) * ld;
+      const double h0 = head[c], h1 = head[c + 1], h2 = head[c + 2], h3 = head[c + 3];
+      FRACVI_INDEPENDENT_ITERATIONS
+      for (Eigen::Index i = 0; i < n; ++i)
+        sum[i] += (h0 * c0[i] + h1 * c1[i]) + (h2 * c2[i] + h3 * c3[i]);
+    }
+    for (; c < blk.window; ++c) {
+      const double* __restrict col = blk.window_first + c * ld;
+      const double weight = head[c];
+      for (Eigen::Index i = 0; i < n; ++i) sum[i] += weight * col[i];
+    }
+  }
+}
+
 std::shared_ptr<const ExponentialFit> gl_fit(double order, Eigen::Index dimension,
                                              std::size_t capacity, double tolerance) {
   if (dimension < 1 || capacity < 1) {
@@ -96,26 +204,23 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
     for (Eigen::Index b = lo; b < hi; b += kBlock) {
       const Eigen::Index n = std::min(kBlock, hi - b);
-      if (recurse) {
-        // Plain loops over restrict pointers: the compiler vectorises them fully (the Eigen
-        // block expressions of the same loop ran at half the speed).
-        double* __restrict tail = tail_.data() + b;
-        const double* __restrict x = leaving.data() + b;
-        for (Eigen::Index i = 0; i < n; ++i) tail[i] = 0.0;
-        for (Eigen::Index j = 0; j < terms; ++j) {
-          double* __restrict y = state_.data() + j * stride + b;
-          const double a = decay_(j), w = weights_(j);
-          for (Eigen::Index i = 0; i < n; ++i) {
-            const double yi = a * y[i] + x[i];
-            y[i] = yi;
-            tail[i] += w * yi;
-          }
-        }
-      }
-      ring_.col(slot).segment(b, n) = x_tilde.segment(b, n);
-      ring_.col(slot + window_).segment(b, n) = x_tilde.segment(b, n);
-      sum_.segment(b, n).noalias() = ring_.block(b, first, n, window_) * head_reversed_;
-      sum_.segment(b, n) += tail_.segment(b, n);
+      const FastHistoryBlock block{n,
+                                   recurse ? terms : Eigen::Index{0},
+                                   stride,
+                                   window_,
+                                   ring_.rows(),
+                                   state_.data() + b,
+                                   tail_.data() + b,
+                                   sum_.data() + b,
+                                   leaving.data() + b,
+                                   x_tilde.data() + b,
+                                   ring_.col(slot).data() + b,
+                                   ring_.col(slot + window_).data() + b,
+                                   ring_.col(first).data() + b,
+                                   decay_.data(),
+                                   weights_.data(),
+                                   head_reversed_.data()};
+      push_block(block);
     }
   };
   const Eigen::Index d = ring_.rows();

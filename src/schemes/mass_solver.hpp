@@ -49,7 +49,10 @@ class MassSolver {
     }
     damping_ = damping;
     scratch_.resize(d);
-    if (mass.is_diagonal()) mass_diagonal_ = mass.sparse().diagonal();
+    if (mass.is_diagonal()) {
+      mass_diagonal_ = mass.sparse().diagonal();
+      unit_mass_ = (mass_diagonal_.array() == 1.0).all();
+    }
     if (mass.is_diagonal() && damping.is_sparse() && damping.is_diagonal()) {
       damping_diagonal_ = damping.sparse().diagonal();
     }
@@ -59,6 +62,8 @@ class MassSolver {
   void inverse(const Eigen::Ref<const Eigen::VectorXd>& p, Eigen::Ref<Eigen::VectorXd> out) const {
     if (dense_) {
       inverse_.multiply(p, out);
+    } else if (unit_mass_) {
+      out = p;
     } else if (mass_diagonal_.size() > 0) {
       out.array() = p.array() / mass_diagonal_.array();
     } else {
@@ -71,6 +76,8 @@ class MassSolver {
                        Eigen::Ref<Eigen::VectorXd> out) {
     if (dense_) {
       minv_damping_.multiply(s, out);
+    } else if (damping_diagonal_.size() > 0 && unit_mass_) {
+      out.array() = damping_diagonal_.array() * s.array();
     } else if (damping_diagonal_.size() > 0) {
       out.array() = (damping_diagonal_.array() * s.array()) / mass_diagonal_.array();
     } else {
@@ -86,6 +93,9 @@ class MassSolver {
   ModelMatrix damping_;
   Eigen::VectorXd scratch_;
   Eigen::VectorXd mass_diagonal_, damping_diagonal_;  // when M (and R') are diagonal
+  // M = I (chains of unit masses): the quotients by 1 are the identity, bit for bit, and a
+  // division pass costs ≈ 1 µs per 1000 degrees of freedom in the SSE2 build.
+  bool unit_mass_ = false;
 };
 
 }  // namespace fracvi::internal

@@ -3,6 +3,9 @@
 #include <lapacke.h>
 
 #include <algorithm>
+#include <array>
+#include <cfloat>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -125,6 +128,25 @@ LinearSolver choose_factorization(const SymmetricPattern& pattern) {
 // goes to LAPACK's dpttrf/dpttrs (LDLᵀ, positive definite) or dgttrf/dgttrs (LU with pivoting),
 // which are plain loops — the general band routines call a level-2 BLAS kernel per column, and for
 // a chain of 1000 masses that made the factorisation 22 µs instead of a few.
+// The solve with the tridiagonal LDLᵀ factor (L unit lower bidiagonal with L(i+1, i) = e_i) is
+// two recurrences, y_i = b_i − e_{i−1} y_{i−1} forward and z_i = y_i/d_i − e_i z_{i+1} backward:
+// each element waits for the previous one, so LAPACK's dpttrs runs at the latency of a
+// multiply–add, ≈ 4 µs for d = 1000 — 12–16 % of a step of the fractional chain
+// (bench/RESULTS.md). Cut into kChunks chunks, the recurrences run in all chunks at once (kChunks
+// independent chains keep the multiply–add pipes busy), each chunk started from zero; the exact
+// solution is the chunk's local one plus a multiple of the value just before it (forward) or just
+// after it (backward): y_i = y_i^loc + g_i y_{s−1}, g_s = −e_{s−1}, g_i = −e_{i−1} g_{i−1} (the
+// "spikes", computed once per factorisation). The correction goes chunk by chunk (it needs the
+// corrected last value of the previous chunk) but is a vectorised pass, and stops where the spike
+// has underflowed (|g| < DBL_MIN is stored as 0, so no denormal enters the pass): for the
+// diagonally dominant matrices of chains (|e| ≈ h²k/4) that is after a few elements. Used when
+// n ≥ kChunkedMinimum and every |e_i| ≤ 1/2: then |g| ≤ 2^−t decays, the local solutions are no
+// larger than the true ones and the correction cannot cancel more than the sequential recurrence
+// would; otherwise (and for the LU fallback) LAPACK.
+constexpr std::size_t kChunks = 16;
+constexpr std::size_t kChunkedMinimum = 32 * kChunks;
+constexpr double kChunkedMaxCoupling = 0.5;
+
 struct SymmetricFactor::Banded {
   lapack_int n = 0, kd = 0, ldab_chol = 0, ldab_lu = 0;
   std::vector<double> chol, lu;
@@ -134,6 +156,12 @@ struct SymmetricFactor::Banded {
   // kd ≤ 1: diagonal and first off-diagonal (copies for the LU fallback: dl, d, du, du2).
   std::vector<double> diag, off, lu_dl, lu_d, lu_du, lu_du2;
   std::vector<std::size_t> tri_at;  // per pattern entry: i for (i, i), n + i for (i, i + 1)
+  // The chunked solve of the LDLᵀ factor (tridiagonal_chunked_solve below), when use_chunks.
+  bool use_chunks = false;
+  std::size_t chunk = 0;                  // chunk length c (the last chunk takes the rest)
+  std::vector<double> forward, backward;  // g_i, h_i: the spikes
+  std::vector<double> inverse_diag;       // 1/d_i (a division pass was a third of the solve)
+  std::array<std::size_t, kChunks> forward_reach{}, backward_reach{};  // their non-zero lengths
 };
 
 struct SymmetricFactor::Sparse {
@@ -141,6 +169,100 @@ struct SymmetricFactor::Sparse {
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Upper, Eigen::AMDOrdering<int>> ldlt;
   mutable Eigen::VectorXd scratch;
 };
+
+namespace {
+
+// Chunk p covers [p c, (p + 1) c) and the last one [(kChunks − 1) c, n).
+std::size_t chunk_begin(std::size_t p, std::size_t c) {
+  return p * c;
+}
+
+}  // namespace
+
+void SymmetricFactor::prepare_chunked_solve(Banded& b) noexcept {
+  const auto n = static_cast<std::size_t>(b.n);
+  const std::size_t c = b.chunk;
+  if (c == 0) return;
+  const double* e = b.off.data();
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    if (!(std::abs(e[i]) <= kChunkedMaxCoupling)) return;  // NaN included: LAPACK's solve
+  }
+  for (std::size_t i = 0; i < n; ++i) b.inverse_diag[i] = 1.0 / b.diag[i];
+  // Forward spikes of chunks 1 … kChunks − 1, backward spikes of chunks 0 … kChunks − 2.
+  for (std::size_t p = 0; p < kChunks; ++p) {
+    const std::size_t lo = chunk_begin(p, c), hi = p + 1 < kChunks ? lo + c : n;
+    std::size_t reach = 0;
+    if (p > 0) {
+      double g = 1.0;
+      for (std::size_t i = lo; i < hi; ++i) {
+        g *= -e[i - 1];
+        if (std::abs(g) < DBL_MIN) break;
+        b.forward[i] = g;
+        reach = i - lo + 1;
+      }
+    }
+    b.forward_reach[p] = reach;
+    reach = 0;
+    if (p + 1 < kChunks) {
+      double g = 1.0;
+      for (std::size_t i = hi; i-- > lo;) {
+        g *= -e[i];
+        if (std::abs(g) < DBL_MIN) break;
+        b.backward[i] = g;
+        reach = hi - i;
+      }
+    }
+    b.backward_reach[p] = reach;
+  }
+  b.use_chunks = true;
+}
+
+void SymmetricFactor::tridiagonal_chunked_solve(const Banded& b, double* x) noexcept {
+  const auto n = static_cast<std::size_t>(b.n);
+  const std::size_t c = b.chunk, last = chunk_begin(kChunks - 1, c);
+  const double* e = b.off.data();
+  // Forward, L y = b: the chunks' local recurrences side by side, then the last chunk's rest.
+  std::array<double, kChunks> carry{};
+  for (std::size_t p = 0; p < kChunks; ++p) carry[p] = x[chunk_begin(p, c)];
+  for (std::size_t t = 1; t < c; ++t) {
+    for (std::size_t p = 0; p < kChunks; ++p) {
+      const std::size_t i = chunk_begin(p, c) + t;
+      carry[p] = x[i] - e[i - 1] * carry[p];
+      x[i] = carry[p];
+    }
+  }
+  for (std::size_t i = last + c; i < n; ++i) x[i] -= e[i - 1] * x[i - 1];
+  for (std::size_t p = 1; p < kChunks; ++p) {
+    const std::size_t lo = chunk_begin(p, c);
+    const double before = x[lo - 1];
+    const double* g = b.forward.data() + lo;
+    double* y = x + lo;
+    for (std::size_t i = 0; i < b.forward_reach[p]; ++i) y[i] += g[i] * before;
+  }
+  const double* inverse_d = b.inverse_diag.data();
+  for (std::size_t i = 0; i < n; ++i) x[i] *= inverse_d[i];
+  // Backward, D Lᵀ z = y: the last chunk's rest first (its values are final), then the chunks
+  // side by side from their ends (the last chunk continuing from its rest), then the corrections
+  // from the last chunk down.
+  for (std::size_t i = n - 1; i-- > last + c;) x[i] -= e[i] * x[i + 1];
+  carry.fill(0.0);
+  if (last + c < n) carry[kChunks - 1] = x[last + c];
+  for (std::size_t t = 0; t < c; ++t) {
+    for (std::size_t p = 0; p < kChunks; ++p) {
+      const std::size_t i = chunk_begin(p, c) + c - 1 - t;
+      carry[p] = x[i] - e[i] * carry[p];
+      x[i] = carry[p];
+    }
+  }
+  for (std::size_t p = kChunks - 1; p-- > 0;) {
+    const std::size_t hi = chunk_begin(p + 1, c);
+    const double after = x[hi];
+    const std::size_t reach = b.backward_reach[p];
+    const double* h = b.backward.data() + hi - reach;
+    double* z = x + hi - reach;
+    for (std::size_t i = 0; i < reach; ++i) z[i] += h[i] * after;
+  }
+}
 
 SymmetricFactor::SymmetricFactor(std::shared_ptr<const SymmetricPattern> pattern,
                                  LinearSolver solver)
@@ -168,6 +290,12 @@ SymmetricFactor::SymmetricFactor(std::shared_ptr<const SymmetricPattern> pattern
       b.diag.assign(n, 0.0);
       b.off.assign(n, 0.0);
       for (std::vector<double>* v : {&b.lu_dl, &b.lu_d, &b.lu_du, &b.lu_du2}) v->assign(n, 0.0);
+      if (b.kd == 1 && n >= kChunkedMinimum) {
+        b.chunk = n / kChunks;
+        b.forward.assign(n, 0.0);
+        b.backward.assign(n, 0.0);
+        b.inverse_diag.assign(n, 0.0);
+      }
       for (const auto& e : p.entries()) {
         const auto i = static_cast<std::size_t>(e.row);
         b.tri_at.push_back(e.row == e.col ? i : n + i);
@@ -242,7 +370,11 @@ bool SymmetricFactor::factor_tridiagonal() noexcept {
   }
   std::copy(b.diag.begin(), b.diag.end(), b.lu_d.begin());  // kept for the fallback
   std::copy(b.off.begin(), b.off.end(), b.lu_du.begin());
-  if (LAPACKE_dpttrf_work(b.n, b.diag.data(), b.off.data()) == 0) return true;
+  b.use_chunks = false;
+  if (LAPACKE_dpttrf_work(b.n, b.diag.data(), b.off.data()) == 0) {
+    prepare_chunked_solve(b);
+    return true;
+  }
   b.use_lu = true;  // not positive definite: tridiagonal LU with partial pivoting
   std::copy(b.lu_du.begin(), b.lu_du.end(), b.lu_dl.begin());
   return LAPACKE_dgttrf_work(b.n, b.lu_dl.data(), b.lu_d.data(), b.lu_du.data(), b.lu_du2.data(),
@@ -259,6 +391,8 @@ void SymmetricFactor::solve_in_place(Eigen::Ref<Eigen::VectorXd> rhs) const noex
     if (b.use_lu) {
       LAPACKE_dgttrs_work(LAPACK_COL_MAJOR, 'N', b.n, 1, b.lu_dl.data(), b.lu_d.data(),
                           b.lu_du.data(), b.lu_du2.data(), b.pivots.data(), rhs.data(), b.n);
+    } else if (b.use_chunks) {
+      tridiagonal_chunked_solve(b, rhs.data());
     } else {
       LAPACKE_dpttrs_work(LAPACK_COL_MAJOR, b.n, 1, b.diag.data(), b.off.data(), rhs.data(), b.n);
     }

@@ -67,6 +67,29 @@ TEST(SymmetricFactor, BandedCholeskyMatchesDenseLu) {
   }
 }
 
+// Tridiagonal matrices from 512 rows on are solved in 16 chunks side by side, each corrected by a
+// multiple of its neighbour's boundary value (symmetric_factor.cpp), when every off-diagonal of the
+// LDLᵀ factor is at most 1/2 in size; otherwise by LAPACK's dpttrs. Both must give the dense LU's
+// solution: the chain's weak coupling (spikes that underflow after a few elements), couplings
+// whose spikes run over whole chunks, one whose factor's |e| ≈ 0.65 > 1/2 (LAPACK), sizes that
+// leave the last chunk longer, and the smallest chunked size.
+TEST(SymmetricFactor, ChunkedTridiagonalSolveMatchesDenseLu) {
+  for (const Eigen::Index d : {511, 512, 1000, 1023, 2049}) {
+    for (const double coupling : {2.5e-5, 0.3, 0.45, 10.0}) {
+      Eigen::MatrixXd a = Eigen::MatrixXd::Zero(d, d);
+      std::mt19937 rng(static_cast<unsigned>(d));
+      std::uniform_real_distribution<double> u(0.5, 1.0);
+      for (Eigen::Index i = 0; i < d; ++i) a(i, i) = 1.0 + 2.0 * coupling;
+      for (Eigen::Index i = 0; i + 1 < d; ++i) a(i, i + 1) = a(i + 1, i) = -coupling * u(rng);
+      Filled f = filled(a, LinearSolver::kBanded);
+      ASSERT_TRUE(f.factor->factor());
+      // Eigenvalues in [1, 1 + 4·coupling] (Gershgorin): a few ulps × the condition number.
+      EXPECT_LE(solve_error(*f.factor, a, 9u), 1e-14 * (1.0 + 4.0 * coupling))
+          << "d " << d << ", coupling " << coupling;
+    }
+  }
+}
+
 // J = M + (h²/4)∇²U is indefinite when U is concave enough and h large: Cholesky fails, the band
 // LU with pivoting takes over.
 // (Bandwidth 1 has its own LAPACK routines, dpttrf and dgttrf; bandwidth 0 divides.)

@@ -112,6 +112,8 @@ class SymmetricFactor {
   struct Banded;
   struct Sparse;
   bool factor_tridiagonal() noexcept;  // bandwidth 0 or 1
+  static void prepare_chunked_solve(Banded& b) noexcept;
+  static void tridiagonal_chunked_solve(const Banded& b, double* x) noexcept;
   std::shared_ptr<const SymmetricPattern> pattern_;
   LinearSolver backend_;
   std::vector<double> values_;
