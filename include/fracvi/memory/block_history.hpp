@@ -177,8 +177,10 @@ std::unique_ptr<BlockHistory> make_fast_block_history(const RungeKuttaCq& quadra
                                                       double tolerance = 1e-10);
 
 /// Capacity from which HistoryKind::kAuto picks FastBlockHistory for non-integer orders whatever
-/// d (measured: at d = 1 direct and fast whole runs, fit included, are even near N = 4096).
-inline constexpr std::size_t kBlockFastHistoryCrossover = 4096;
+/// d. Measured for whole `fracvi run`s of fvi-lobatto3 (bench/history_crossover.py, 2026-11-26,
+/// idle machine): at d = 1 direct / fast = 0.61 at N = 1536, 1.00 at 2048, 1.24 at 3072, 2.11 at
+/// 4096; hence 2048 (was 4096, from an earlier measurement that found them even near 4096).
+inline constexpr std::size_t kBlockFastHistoryCrossover = 2048;
 
 /// HistoryKind::kAuto's choice for a non-integer order: the fast block history from
 /// kBlockFastHistoryCrossover pushes, and earlier when the estimated direct run (N²·d·s²/2

@@ -112,8 +112,11 @@ std::unique_ptr<History> make_fast_history(const ConvolutionQuadrature& quadratu
 /// by bench/history_bench.cpp (docs/theory/fast_history.md §8): above it FastHistory wins a whole
 /// run of `capacity` push+sum steps for d = 1 and d = 100 even when the run pays for its fit and
 /// against a direct sum written as one gemv; below it a direct run takes ≲ 30 ms and is exact to
-/// round-off. (With the fit cached the crossover is 20–200 steps.)
-inline constexpr std::size_t kFastHistoryCrossover = 4096;
+/// round-off. (With the fit cached the crossover is 20–200 steps.) Re-measured for whole
+/// `fracvi run`s (bench/history_crossover.py, bench/RESULTS.md, 2026-11-26, idle machine, after
+/// the faster push kernel): at d = 1 direct / fast = 0.61–0.80 at N = 1024–1536, 1.05–1.37 at
+/// 2048, 1.31–1.67 at 3072 for fvi-gl, fvi-bdf2 and fvi-midpoint; hence 2048 (was 4096).
+inline constexpr std::size_t kFastHistoryCrossover = 2048;
 
 /// HistoryKind::kAuto's choice for a non-integer order: FastHistory from kFastHistoryCrossover
 /// steps whatever d, and earlier for large d, when the estimated direct run (N²·d/2 multiply–adds)

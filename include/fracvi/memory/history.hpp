@@ -144,8 +144,9 @@ class LocalHistory final : public History {
 
 enum class HistoryKind {
   /// LocalHistory for integer 2α; otherwise FastHistory when fast_history_pays(capacity, d)
-  /// (from capacity ≥ kFastHistoryCrossover = 4096, measured in bench/history_bench.cpp, fit
-  /// included; earlier for large d; see bench/RESULTS.md), else DirectHistory.
+  /// (from capacity ≥ kFastHistoryCrossover = 2048, measured for whole runs in
+  /// bench/history_crossover.py, fit included; earlier for large d; see bench/RESULTS.md), else
+  /// DirectHistory.
   kAuto,
   kDirect,  ///< DirectHistory always (e.g. to check Lemma 5.3 against the full sum)
   kFast,    ///< LocalHistory for integer 2α, FastHistory otherwise
