@@ -1212,11 +1212,6 @@ class SeriesShiftStepper final : public Stepper {
 
   // x, v, p (and the stage values) of step k from the remainder's.
   void report(std::size_t k) {
-    evaluate(problem_.time(static_cast<double>(k)), shift_, rate_);
-    x_ = stepper_->position() + shift_;
-    v_ = stepper_->velocity() + rate_;
-    mass_.multiply(rate_, scratch_);
-    p_ = stepper_->momentum() + scratch_;
     if (const Eigen::MatrixXd* w = stepper_->stage_values(); w != nullptr && k > 0) {
       const double start = problem_.time(static_cast<double>(k - 1));
       const double h = problem_.step_size();
@@ -1224,8 +1219,12 @@ class SeriesShiftStepper final : public Stepper {
         evaluate(start + c_(a) * h, scratch_, rate_);
         stages_.col(a) = w->col(a) + scratch_;
       }
-      evaluate(problem_.time(static_cast<double>(k)), shift_, rate_);
     }
+    evaluate(problem_.time(static_cast<double>(k)), shift_, rate_);
+    x_ = stepper_->position() + shift_;
+    v_ = stepper_->velocity() + rate_;
+    mass_.multiply(rate_, scratch_);
+    p_ = stepper_->momentum() + scratch_;
     work_ = diagnostics_ ? stepper_->work() + energy_gap() - energy_offset_ : kNaN;
   }
 
