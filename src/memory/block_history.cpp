@@ -14,6 +14,7 @@
 
 #include "fracvi/fractional/convolution.hpp"
 #include "fracvi/internal/parallel.hpp"
+#include "fracvi/internal/vectorize.hpp"
 #include "fracvi/memory/fast_history.hpp"
 
 namespace fracvi {
@@ -161,7 +162,7 @@ FastBlockHistory::FastBlockHistory(std::shared_ptr<const RkcqTail> tail, std::si
         tail_->head[static_cast<std::size_t>(static_cast<Eigen::Index>(tail_->window) - 1 - t)]
             .transpose();
   }
-  ring_.setZero(2 * window_ * s, dimension);
+  ring_.setZero(dimension, 2 * window_ * s);
   const auto k = static_cast<Eigen::Index>(tail_->terms());
   decay_.resize(k);
   right_.resize(k, s);
@@ -172,58 +173,153 @@ FastBlockHistory::FastBlockHistory(std::shared_ptr<const RkcqTail> tail, std::si
     right_.row(i) = tail_->right[u].transpose();
     left_.row(i) = tail_->gammas[u] * tail_->left[u].transpose();
   }
-  state_.setZero(k, dimension);
+  state_.setZero(dimension, k);
   sum_.setZero(dimension, s);
 }
 
+namespace {
+
+// One block of rows of FastBlockHistory::push() (the columns of every array are d long; the
+// pointers are offset to the block's first row).
+struct BlockHistoryRows {
+  Eigen::Index rows, terms, window, ld, block_ld;
+  Eigen::Index slot, first;  // ring positions of Z_{k−n0} (taken by Z_k) and of the window's start
+  double* state;             // d × K: column i is Y_i
+  double* ring;              // d × (2·n0·s): column t·s + e is stage e at ring position t
+  double* sum;               // d × s
+  const double* block;       // Z_k, d × s with column stride block_ld
+  const double* decay;       // r_i
+  const double* right;       // K × s: (v_i)_e at e·K + i
+  const double* left;        // K × s: γ_i (u_i)_c at c·K + i
+  const double* head;        // (n0·s) × s: column c holds the window's weights of output c
+};
+
+// The kernel for s stages. As FastHistory's kernel (fast_history.cpp), the loops run along the
+// degrees of freedom (contiguous columns, no horizontal sums), and four recursions share one load
+// and store of the s output columns: per term Y_i ← r_i Y_i + Σ_e (v_i)_e Z_{k−n0}(:, e) and
+// out(:, c) += γ_i (u_i)_c Y_i, i.e. K (2s + 1) multiply–adds per degree of freedom; then the
+// window, n0·s columns against s outputs. (The layout of one degree of freedom per pass, with the
+// loops over the K terms, ran at 4–7 times s scalar histories per step at d = 100 … 1000:
+// bench/block_history_bench.cpp.)
+template <int S>
+[[gnu::always_inline]] inline void push_rows(const BlockHistoryRows& blk) {
+  const Eigen::Index n = blk.rows, ld = blk.ld, terms = blk.terms;
+  double* out[S];
+  for (int c = 0; c < S; ++c) {
+    out[c] = blk.sum + c * ld;
+    for (Eigen::Index r = 0; r < n; ++r) out[c][r] = 0.0;
+  }
+  if (terms > 0) {
+    const double* x[S];  // the stage vectors of Z_{k−n0}, leaving the window
+    for (int e = 0; e < S; ++e) x[e] = blk.ring + (blk.slot * S + e) * ld;
+    Eigen::Index i = 0;
+    for (; i + 4 <= terms; i += 4) {
+      double* y0 = blk.state + i * ld;
+      double* y1 = y0 + ld;
+      double* y2 = y1 + ld;
+      double* y3 = y2 + ld;
+      double a[4], v[4][S], u[4][S];
+      for (int j = 0; j < 4; ++j) {
+        a[j] = blk.decay[i + j];
+        for (int e = 0; e < S; ++e) v[j][e] = blk.right[e * terms + i + j];
+        for (int c = 0; c < S; ++c) u[j][c] = blk.left[c * terms + i + j];
+      }
+      FRACVI_INDEPENDENT_ITERATIONS
+      for (Eigen::Index r = 0; r < n; ++r) {
+        double w0 = a[0] * y0[r], w1 = a[1] * y1[r], w2 = a[2] * y2[r], w3 = a[3] * y3[r];
+        for (int e = 0; e < S; ++e) {
+          const double z = x[e][r];
+          w0 += v[0][e] * z;
+          w1 += v[1][e] * z;
+          w2 += v[2][e] * z;
+          w3 += v[3][e] * z;
+        }
+        y0[r] = w0;
+        y1[r] = w1;
+        y2[r] = w2;
+        y3[r] = w3;
+        for (int c = 0; c < S; ++c)
+          out[c][r] += (u[0][c] * w0 + u[1][c] * w1) + (u[2][c] * w2 + u[3][c] * w3);
+      }
+    }
+    for (; i < terms; ++i) {
+      double* y = blk.state + i * ld;
+      const double a = blk.decay[i];
+      FRACVI_INDEPENDENT_ITERATIONS
+      for (Eigen::Index r = 0; r < n; ++r) {
+        double w = a * y[r];
+        for (int e = 0; e < S; ++e) w += blk.right[e * terms + i] * x[e][r];
+        y[r] = w;
+        for (int c = 0; c < S; ++c) out[c][r] += blk.left[c * terms + i] * w;
+      }
+    }
+  }
+  // Z_k enters the ring (twice, so that the window is n0·s consecutive columns); Z_{k−n0}, read
+  // above, sat in the same slot.
+  for (int e = 0; e < S; ++e) {
+    const double* z = blk.block + e * blk.block_ld;
+    double* a = blk.ring + (blk.slot * S + e) * ld;
+    double* b = blk.ring + ((blk.slot + blk.window) * S + e) * ld;
+    for (Eigen::Index r = 0; r < n; ++r) a[r] = b[r] = z[r];
+  }
+  const Eigen::Index width = blk.window * S;  // 16·s: a multiple of 4
+  const double* window = blk.ring + blk.first * S * ld;
+  Eigen::Index q = 0;
+  for (; q + 4 <= width; q += 4) {
+    const double* c0 = window + q * ld;
+    const double* c1 = c0 + ld;
+    const double* c2 = c1 + ld;
+    const double* c3 = c2 + ld;
+    double h[S][4];
+    for (int c = 0; c < S; ++c)
+      for (int j = 0; j < 4; ++j) h[c][j] = blk.head[c * width + q + j];
+    FRACVI_INDEPENDENT_ITERATIONS
+    for (Eigen::Index r = 0; r < n; ++r) {
+      const double z0 = c0[r], z1 = c1[r], z2 = c2[r], z3 = c3[r];
+      for (int c = 0; c < S; ++c)
+        out[c][r] += (h[c][0] * z0 + h[c][1] * z1) + (h[c][2] * z2 + h[c][3] * z3);
+    }
+  }
+  for (; q < width; ++q) {
+    const double* col = window + q * ld;
+    for (int c = 0; c < S; ++c) {
+      const double weight = blk.head[c * width + q];
+      for (Eigen::Index r = 0; r < n; ++r) out[c][r] += weight * col[r];
+    }
+  }
+}
+
+FRACVI_HOT_KERNEL void push_rows2(const BlockHistoryRows& blk) {
+  push_rows<2>(blk);
+}
+FRACVI_HOT_KERNEL void push_rows3(const BlockHistoryRows& blk) {
+  push_rows<3>(blk);
+}
+FRACVI_HOT_KERNEL void push_rows4(const BlockHistoryRows& blk) {
+  push_rows<4>(blk);
+}
+
+}  // namespace
+
 void FastBlockHistory::push(const Eigen::Ref<const Eigen::MatrixXd>& block) {
   assert(size_ < capacity_ && block.rows() == sum_.rows() && block.cols() == stages_);
-  const Eigen::Index s = stages_, n0 = window_, terms = decay_.size();
+  const Eigen::Index s = stages_, n0 = window_, terms = decay_.size(), d = sum_.rows();
   const auto slot = static_cast<Eigen::Index>(size_ % static_cast<std::size_t>(n0));
   const bool recurse = size_ >= static_cast<std::size_t>(n0);
   // After the push the last n0 blocks Z_{k−n0+1} … Z_k sit at ring positions first … first + n0 − 1
-  // (each position s rows); before k = n0 − 1 the missing ones are the zeros the ring was cleared
-  // to.
+  // (each position s columns); before k = n0 − 1 the missing ones are the zeros the ring was
+  // cleared to.
   const auto first = static_cast<Eigen::Index>((size_ + 1) % static_cast<std::size_t>(n0));
-  const Eigen::Index ring_rows = ring_.rows(), d = sum_.rows();
-  const double* __restrict decay = decay_.data();
-  // Per degree of freedom r (all its data contiguous: ring column r, state column r): (1) the
-  // stage vector of Z_{k−n0} leaves the window (it sits in the slot Z_k is about to take) and
-  // enters every recursion, Y_i ← r_i Y_i + Z_{k−n0} v_i, and the tail Σ_i γ_i Y_i u_iᵀ is formed;
-  // (2) Z_k enters the ring; (3) the sum = window · exact blocks + tail. The loops over the K
-  // terms and over the n0·s window entries are contiguous and vectorise.
+  void (*kernel)(const BlockHistoryRows&) =
+      s == 2 ? push_rows2 : (s == 3 ? push_rows3 : push_rows4);
+  // Blocks of kBlock rows keep the s output columns in L1 while the K recursions pass over them.
+  constexpr Eigen::Index kBlock = 256;
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
-    for (Eigen::Index r = lo; r < hi; ++r) {
-      double* __restrict ring = ring_.data() + r * ring_rows;
-      double tail[4] = {0.0, 0.0, 0.0, 0.0};  // s ≤ 4
-      if (recurse) {
-        double* __restrict y = state_.data() + r * terms;
-        for (Eigen::Index i = 0; i < terms; ++i) y[i] *= decay[i];
-        for (Eigen::Index e = 0; e < s; ++e) {
-          const double x = ring[slot * s + e];
-          const double* __restrict v = right_.data() + e * terms;
-          for (Eigen::Index i = 0; i < terms; ++i) y[i] += x * v[i];
-        }
-        for (Eigen::Index c = 0; c < s; ++c) {
-          const double* __restrict u = left_.data() + c * terms;
-          double t = 0.0;
-          for (Eigen::Index i = 0; i < terms; ++i) t += u[i] * y[i];
-          tail[c] = t;
-        }
-      }
-      for (Eigen::Index e = 0; e < s; ++e) {
-        const double z = block(r, e);
-        ring[slot * s + e] = z;
-        ring[(slot + n0) * s + e] = z;
-      }
-      const double* __restrict window = ring + first * s;
-      const Eigen::Index width = n0 * s;
-      for (Eigen::Index c = 0; c < s; ++c) {
-        const double* __restrict h = head_.data() + c * width;
-        double t = 0.0;
-        for (Eigen::Index q = 0; q < width; ++q) t += window[q] * h[q];
-        sum_(r, c) = t + tail[c];
-      }
+    for (Eigen::Index b = lo; b < hi; b += kBlock) {
+      kernel({std::min(kBlock, hi - b), recurse ? terms : Eigen::Index{0}, n0, d,
+              block.outerStride(), slot, first, state_.data() + b, ring_.data() + b,
+              sum_.data() + b, block.data() + b, decay_.data(), right_.data(), left_.data(),
+              head_.data()});
     }
   };
   const Eigen::Index work = d * (terms * (2 * s + 1) + n0 * s * s);
@@ -255,8 +351,11 @@ void FastBlockHistory::visit_state(StateArchive& archive) {
   if (size_ > capacity_) {
     throw CheckpointError("checkpoint record 'block_fast.size' exceeds capacity");
   }
-  archive.dense("block_fast.ring", ring_);
-  archive.dense("block_fast.recursions", state_);
+  // Records of the degree-of-freedom-major layout (ring and recursions as d × … columns): the
+  // names differ from those of the earlier transposed layout, so that its checkpoints are refused
+  // by name rather than restored transposed.
+  archive.dense("block_fast.ring_by_stage", ring_);
+  archive.dense("block_fast.recursions_by_term", state_);
   archive.dense("block_fast.sum", sum_);
 }
 

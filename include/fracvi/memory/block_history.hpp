@@ -148,11 +148,12 @@ class FastBlockHistory final : public BlockHistory {
   Eigen::Index window_;  // n0
   Eigen::Index stages_;  // s
   Eigen::MatrixXd head_;  // (n0·s) × s; rows t·s … t·s + s − 1 hold W_{lag+n0−1−t}ᵀ (oldest first)
-  Eigen::MatrixXd ring_;  // (2·n0·s) × d; per degree of freedom its last n0 stage vectors, twice
+  Eigen::MatrixXd
+      ring_;  // d × (2·n0·s); column t·s + e: stage e of ring position t (n0 positions, twice)
   Eigen::VectorXd decay_;  // r_i (K)
   Eigen::MatrixXd right_;  // K × s, column e: (v_i)_e
   Eigen::MatrixXd left_;   // K × s, column c: γ_i (u_i)_c
-  Eigen::MatrixXd state_;  // K × d, column r: Y_i(r), i = 1 … K
+  Eigen::MatrixXd state_;  // d × K, column i: Y_i
   Eigen::MatrixXd sum_;    // d × s, the sum after the last push
   std::size_t size_ = 0;
   int threads_ = 0;
