@@ -555,7 +555,7 @@ class Problem:
                          doc="method.tolerance: > 0 doubles N until the error estimate meets it")
     max_steps = property(lambda self: self._spec.max_steps,
                          doc="method.max_steps: the ceiling of that doubling")
-    threads = property(lambda self: self._spec.threads, doc="method.threads (0: all cores)")
+    threads = property(lambda self: self._spec.threads, doc="method.threads (0: measured, one thread or all cores)")
     every = property(lambda self: self._spec.every,
                      doc="output.every: the solution stores every n-th state and the last")
     format = property(lambda self: self._spec.format,
@@ -854,7 +854,7 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=None, diagnostic
     schemes take out of x at t0), error_estimate ("richardson": the Solution's
     error_estimate from companion runs with N/2 and N/4 steps, about 0.75 of the cost more; or
     "none"), tolerance (> 0: N doubled from steps until error_estimate <= tolerance, up to
-    max_steps; summary()["tolerance_runs"] lists the runs), threads (0: all cores), every (store every n-th state)) may be
+    max_steps; summary()["tolerance_runs"] lists the runs), threads (0: measured, one thread or all cores), every (store every n-th state)) may be
     given as a keyword: it overrides the problem's value, is validated by the same reader as a
     problem file, and is recorded in summary(). An unknown keyword is a TypeError naming the valid
     ones. mirror is method.mirror (the backward run of the mirror equation and mirror_error, a

@@ -762,8 +762,8 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   if (const auto* n = r.find("method", "threads")) {
     const long long threads = r.integer(*n, "method.threads");
     if (threads < 0 || threads > 4096) {
-      r.fail("method.threads",
-             "= " + std::to_string(threads) + " must be in [0, 4096] (0: all cores)");
+      r.fail("method.threads", "= " + std::to_string(threads) +
+                                   " must be in [0, 4096] (0: measured, one thread or all cores)");
     }
     p.threads = static_cast<int>(threads);
   }

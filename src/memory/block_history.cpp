@@ -175,6 +175,7 @@ FastBlockHistory::FastBlockHistory(std::shared_ptr<const RkcqTail> tail, std::si
   }
   state_.setZero(dimension, k);
   sum_.setZero(dimension, s);
+  team_.configure(0, internal::team_size(0, push_work(), kParallelWork));
 }
 
 namespace {
@@ -322,8 +323,7 @@ void FastBlockHistory::push(const Eigen::Ref<const Eigen::MatrixXd>& block) {
               head_.data()});
     }
   };
-  const Eigen::Index work = d * (terms * (2 * s + 1) + n0 * s * s);
-  internal::for_blocks(d, internal::team_size(threads_, work, kParallelWork), update);
+  internal::for_blocks(d, team_, update);
   ++size_;
 }
 
@@ -333,10 +333,8 @@ void FastBlockHistory::sum(Eigen::Ref<Eigen::MatrixXd> out) const {
 }
 
 void FastBlockHistory::set_threads(int threads) {
-  threads_ = threads;
-  const Eigen::Index d = sum_.rows(), terms = decay_.size();
-  internal::start_threads(internal::team_size(
-      threads_, d * (terms * (2 * stages_ + 1) + window_ * stages_ * stages_), kParallelWork));
+  team_.configure(threads, internal::team_size(threads, push_work(), kParallelWork));
+  internal::start_threads(team_.team());
 }
 
 void FastBlockHistory::visit_state(StateArchive& archive) {

@@ -176,6 +176,7 @@ FastHistory::FastHistory(std::shared_ptr<const ExponentialFit> fit, Eigen::Index
   state_.setZero(dimension, k);
   tail_.setZero(dimension);
   sum_.setZero(dimension);
+  team_.configure(0, internal::team_size(0, dimension * (k + window_), kParallelWork));
 }
 
 FastHistory::FastHistory(double order, Eigen::Index dimension, std::size_t capacity,
@@ -224,8 +225,7 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
     }
   };
   const Eigen::Index d = ring_.rows();
-  internal::for_blocks(d, internal::team_size(threads_, d * (terms + window_), kParallelWork),
-                       update);
+  internal::for_blocks(d, team_, update);
   ++size_;
 }
 
@@ -235,10 +235,9 @@ void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
 }
 
 void FastHistory::set_threads(int threads) {
-  threads_ = threads;
-  const Eigen::Index d = ring_.rows();
-  internal::start_threads(
-      internal::team_size(threads_, d * (state_.cols() + window_), kParallelWork));
+  team_.configure(threads, internal::team_size(threads, ring_.rows() * (state_.cols() + window_),
+                                               kParallelWork));
+  internal::start_threads(team_.team());
 }
 
 void FastHistory::visit_state(StateArchive& archive) {

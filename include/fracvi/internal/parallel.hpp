@@ -10,6 +10,9 @@
 #include <omp.h>
 
 #include <Eigen/Core>
+#include <chrono>
+
+#include "fracvi/internal/team_chooser.hpp"
 
 namespace fracvi::internal {
 
@@ -53,6 +56,20 @@ double sum_blocks(Eigen::Index n, int threads, Body&& body) {
     total += body(n * part / parts, n * (part + 1) / parts);
   }
   return total;
+}
+
+/// for_blocks on the thread count `team` chooses (team_chooser.hpp), timing the call for it when
+/// it measures.
+template <class Body>
+void for_blocks(Eigen::Index n, TeamChooser& team, Body&& body) {
+  const int threads = team.next();
+  if (!team.measuring()) {
+    for_blocks(n, threads, body);
+    return;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  for_blocks(n, threads, body);
+  team.record(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
 }
 
 }  // namespace fracvi::internal

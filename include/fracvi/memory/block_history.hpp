@@ -31,6 +31,7 @@
 
 #include "fracvi/core/state_archive.hpp"
 #include "fracvi/fractional/runge_kutta_cq.hpp"
+#include "fracvi/internal/team_chooser.hpp"
 #include "fracvi/memory/history.hpp"
 
 namespace fracvi {
@@ -156,7 +157,11 @@ class FastBlockHistory final : public BlockHistory {
   Eigen::MatrixXd state_;  // d × K, column i: Y_i
   Eigen::MatrixXd sum_;    // d × s, the sum after the last push
   std::size_t size_ = 0;
-  int threads_ = 0;
+  internal::TeamChooser team_;  // threads per push: measured (threads = 0) or as set
+  // Multiply–adds per push: K(2s + 1) + n0·s² per degree of freedom.
+  [[nodiscard]] Eigen::Index push_work() const {
+    return sum_.rows() * (decay_.size() * (2 * stages_ + 1) + window_ * stages_ * stages_);
+  }
 };
 
 /// Options of the process-wide cache of tail representations (the fit takes 0.05–0.5 s).

@@ -25,6 +25,7 @@
 #include <string_view>
 
 #include "fracvi/fractional/exponential_fit.hpp"
+#include "fracvi/internal/team_chooser.hpp"
 #include "fracvi/memory/history.hpp"
 
 namespace fracvi {
@@ -87,7 +88,7 @@ class FastHistory final : public History {
   Eigen::VectorXd tail_;           // Σ_j w_j Y_j (d), updated by push()
   Eigen::VectorXd sum_;            // the whole sum after the last push (d)
   std::size_t size_ = 0;
-  int threads_ = 0;
+  internal::TeamChooser team_;  // threads per push: measured (threads = 0) or as set
 };
 
 /// Multiply–adds per step ((K + n0)·d: the recursions and the window) from which FastHistory

@@ -125,8 +125,10 @@ struct IntegratorOptions {
   /// Zero crossings of g(t, x, v) located on the same interpolant, recorded in Solution::events,
   /// optionally terminal (core/event.hpp). Names distinct and non-empty.
   std::vector<Event> events;
-  /// Threads for the work over degrees of freedom (fast-history recursions): 0 = OpenMP's default
-  /// (all cores, or OMP_NUM_THREADS); small systems run on one thread regardless.
+  /// Threads for the work over degrees of freedom (fast-history recursions): 0 = measured, the
+  /// histories time one thread against OpenMP's default (all cores, or OMP_NUM_THREADS) during
+  /// the run and keep the faster (internal/team_chooser.hpp); n ≥ 1 = n threads; small systems
+  /// run on one thread regardless.
   int threads = 0;
   /// Polled before every step (and by the companion runs of the error estimate): when it returns
   /// true the run stops there with Status::kInterrupted, the trajectory so far kept. `fracvi run`

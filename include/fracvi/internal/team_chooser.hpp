@@ -1,0 +1,88 @@
+// The thread count of the loops over degrees of freedom that run once per step (internal; the
+// loops themselves: parallel.hpp).
+#pragma once
+
+#include <Eigen/Core>
+#include <algorithm>
+
+namespace fracvi::internal {
+
+/// The thread count of a loop over degrees of freedom that runs once per step (a history's push),
+/// chosen by timing. A fixed rule misjudges both ways: on an idle machine the second core pays
+/// only from a few thousand degrees of freedom, and on a machine busy with other work every
+/// parallel region waits for a core that is not free (fvi-lobatto3, d = 1000: 5 times slower on
+/// two threads than on one at load 5; bench/RESULTS.md). So, with threads = 0 (auto) and work at
+/// or above the threshold, the loop alternates trials — kTrialCalls calls on one thread, then as
+/// many on the team — keeps the faster for a hold of at least kHoldSeconds (and 32 times the
+/// trials' time, so that trials cost at most a few per cent), and measures again. Each degree of
+/// freedom's arithmetic does not depend on the partition, so the choice never changes a result.
+/// requested ≥ 1 is used as given (above the threshold). No allocation, no system call but the
+/// clock's.
+class TeamChooser {
+ public:
+  static constexpr int kTrialCalls = 16;
+  static constexpr double kHoldSeconds = 0.5;
+
+  /// requested: 0 = measured, n ≥ 1 = n threads; team: the threads a call may use
+  /// (parallel.hpp's team_size(requested, work, threshold): 1 below the threshold, else requested
+  /// or, for 0, all cores or OMP_NUM_THREADS).
+  void configure(int requested, int team) {
+    team_ = std::max(team, 1);
+    adaptive_ = requested == 0 && team_ > 1;
+    phase_ = Phase::kTrialOne;
+    calls_ = 0;
+    one_ = team_time_ = held_ = 0.0;
+    chosen_ = team_;
+  }
+  /// The largest team a call may use (for start_threads at set-up).
+  [[nodiscard]] int team() const { return team_; }
+  /// Whether the calls are timed (threads = 0 above the threshold): then each next() is followed
+  /// by record() with the call's wall time.
+  [[nodiscard]] bool measuring() const { return adaptive_; }
+  /// The thread count of the next call.
+  [[nodiscard]] int next() const {
+    if (!adaptive_) return team_;
+    return phase_ == Phase::kTrialOne ? 1 : (phase_ == Phase::kTrialTeam ? team_ : chosen_);
+  }
+  /// The wall time of the call made with next() threads.
+  void record(double seconds) {
+    switch (phase_) {
+      case Phase::kTrialOne:
+        one_ += seconds;
+        if (++calls_ == kTrialCalls) {
+          phase_ = Phase::kTrialTeam;
+          calls_ = 0;
+        }
+        return;
+      case Phase::kTrialTeam:
+        team_time_ += seconds;
+        if (++calls_ == kTrialCalls) {
+          chosen_ = team_time_ < one_ ? team_ : 1;
+          hold_ = std::max(kHoldSeconds, 32.0 * (one_ + team_time_));
+          phase_ = Phase::kHold;
+          held_ = 0.0;
+        }
+        return;
+      case Phase::kHold:
+        held_ += seconds;
+        if (held_ >= hold_) {
+          phase_ = Phase::kTrialOne;
+          calls_ = 0;
+          one_ = team_time_ = 0.0;
+        }
+        return;
+    }
+  }
+
+ private:
+  enum class Phase { kTrialOne, kTrialTeam, kHold };
+
+  int team_ = 1;
+  bool adaptive_ = false;
+  Phase phase_ = Phase::kTrialOne;
+  int calls_ = 0;
+  double one_ = 0.0, team_time_ = 0.0, held_ = 0.0, hold_ = kHoldSeconds;
+  int chosen_ = 1;
+};
+
+}  // namespace fracvi::internal

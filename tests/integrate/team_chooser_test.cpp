@@ -1,0 +1,144 @@
+// The measured thread count of the fast histories' push (internal/team_chooser.hpp):
+//  * the trial / hold cycle of TeamChooser on synthetic call times (which count it picks, when
+//    it measures again, that a requested count is used as given);
+//  * the choice never changes a result: FastHistory and FastBlockHistory sums with threads = 0
+//    (measured: one thread for the first trial's calls, the team for the second's, then the
+//    faster) are bitwise those of threads = 1 and of a fixed team of 2, over pushes that cover
+//    both trials.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstddef>
+#include <random>
+#include <vector>
+
+#include "fracvi/fractional/runge_kutta_cq.hpp"
+#include "fracvi/internal/team_chooser.hpp"
+#include "fracvi/memory/block_history.hpp"
+#include "fracvi/memory/fast_history.hpp"
+
+namespace fracvi {
+namespace {
+
+using internal::TeamChooser;
+constexpr int kTrial = TeamChooser::kTrialCalls;
+
+// Runs one trial cycle with the given per-call times; returns the count chosen for the hold.
+int trial(TeamChooser& team, double one_thread_seconds, double team_seconds) {
+  for (int i = 0; i < kTrial; ++i) {
+    EXPECT_EQ(team.next(), 1) << "call " << i << " of the one-thread trial";
+    team.record(one_thread_seconds);
+  }
+  for (int i = 0; i < kTrial; ++i) {
+    EXPECT_EQ(team.next(), team.team()) << "call " << i << " of the team trial";
+    team.record(team_seconds);
+  }
+  return team.next();
+}
+
+TEST(TeamChooser, PicksTheFasterCountAndMeasuresAgainAfterTheHold) {
+  TeamChooser team;
+  team.configure(0, 2);
+  ASSERT_TRUE(team.measuring());
+  EXPECT_EQ(trial(team, 1e-3, 0.6e-3), 2);  // the team is faster: held on 2 threads
+  // The hold lasts max(0.5 s, 32 × the trials' 25.6 ms) = 0.82 s of calls.
+  const double hold = 32.0 * kTrial * (1e-3 + 0.6e-3);
+  const int calls = static_cast<int>(hold / 0.6e-3);
+  for (int i = 0; i < calls - 1; ++i) {
+    ASSERT_EQ(team.next(), 2) << "hold call " << i;
+    team.record(0.6e-3);
+  }
+  team.record(2 * 0.6e-3);  // the hold is over: trials again, and now the machine is busy
+  EXPECT_EQ(trial(team, 1e-3, 5e-3), 1);
+}
+
+TEST(TeamChooser, ShortCallsHoldForHalfASecond) {
+  TeamChooser team;
+  team.configure(0, 4);
+  EXPECT_EQ(trial(team, 20e-6, 30e-6), 1);
+  // One thread for the hold and then for the next one-thread trial, until the team's trial.
+  int calls = 0;
+  while (team.next() == 1 && calls < 1'000'000) {
+    team.record(20e-6);
+    ++calls;
+  }
+  // The hold ends once 0.5 s (not 32 × 0.8 ms) has been held: 25 000 calls of 20 µs (to one call:
+  // the sum of the times rounds), then the kTrial calls of the next one-thread trial.
+  EXPECT_NEAR(calls - kTrial, TeamChooser::kHoldSeconds / 20e-6, 1.0);
+  EXPECT_EQ(team.next(), 4);
+}
+
+TEST(TeamChooser, RequestedCountsAndSmallWorkAreNotMeasured) {
+  TeamChooser team;
+  team.configure(3, 3);
+  EXPECT_FALSE(team.measuring());
+  EXPECT_EQ(team.next(), 3);
+  team.configure(0, 1);  // below the work threshold
+  EXPECT_FALSE(team.measuring());
+  EXPECT_EQ(team.next(), 1);
+  team.configure(1, 1);
+  EXPECT_FALSE(team.measuring());
+  EXPECT_EQ(team.next(), 1);
+}
+
+Eigen::MatrixXd rough_input(Eigen::Index rows, Eigen::Index columns) {
+  std::mt19937_64 gen(7);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::MatrixXd xs(rows, columns);
+  for (Eigen::Index k = 0; k < columns; ++k)
+    for (Eigen::Index i = 0; i < rows; ++i) xs(i, k) = normal(gen) + 0.01 * static_cast<double>(k);
+  return xs;
+}
+
+bool bitwise_equal(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return a.rows() == b.rows() && a.cols() == b.cols() &&
+         std::equal(a.data(), a.data() + a.size(), b.data());
+}
+
+// 3 trials' worth of pushes: the measured history runs some on one thread and some on the team.
+constexpr int kPushes = 3 * kTrial;
+
+TEST(TeamChooser, FastHistorySumsDoNotDependOnTheChoice) {
+  // d (K + n0) ≥ kParallelWork, so that threads = 0 measures.
+  const Eigen::Index d = 6000;
+  const Eigen::MatrixXd xs = rough_input(d, kPushes);
+  std::vector<Eigen::MatrixXd> sums;
+  for (const int threads : {1, 2, 0}) {
+    FastHistory history(1.5, d, 1 << 12);
+    history.set_threads(threads);
+    Eigen::MatrixXd out(d, kPushes);
+    Eigen::VectorXd s(d);
+    for (int k = 0; k < kPushes; ++k) {
+      history.push(xs.col(k));
+      history.sum(s);
+      out.col(k) = s;
+    }
+    sums.push_back(out);
+  }
+  EXPECT_TRUE(bitwise_equal(sums[0], sums[1])) << "1 thread against a team of 2";
+  EXPECT_TRUE(bitwise_equal(sums[0], sums[2])) << "1 thread against the measured choice";
+}
+
+TEST(TeamChooser, FastBlockHistorySumsDoNotDependOnTheChoice) {
+  const Eigen::Index d = 1500;  // d (K(2s + 1) + n0 s²) ≥ kParallelWork for s = 3
+  const int s = 3;
+  const Eigen::MatrixXd xs = rough_input(d, kPushes * s);
+  std::vector<Eigen::MatrixXd> sums;
+  for (const int threads : {1, 2, 0}) {
+    const auto history = make_fast_block_history(RungeKuttaCq{s, 0.5, 1}, d, 1 << 12);
+    history->set_threads(threads);
+    Eigen::MatrixXd out(d, kPushes * s);
+    Eigen::MatrixXd block(d, s);
+    for (int k = 0; k < kPushes; ++k) {
+      history->push(xs.middleCols(k * s, s));
+      history->sum(block);
+      out.middleCols(k * s, s) = block;
+    }
+    sums.push_back(out);
+  }
+  EXPECT_TRUE(bitwise_equal(sums[0], sums[1])) << "1 thread against a team of 2";
+  EXPECT_TRUE(bitwise_equal(sums[0], sums[2])) << "1 thread against the measured choice";
+}
+
+}  // namespace
+}  // namespace fracvi
