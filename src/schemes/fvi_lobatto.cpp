@@ -1032,9 +1032,11 @@ std::string lobatto_applicability(const InitialValueProblem& problem) {
 }
 
 // 2s − 2 where the solution is smooth at t_0 (integer 2α: the RKCQ is exact and local, or R = 0);
-// 2 for fractional damping, where x − P = O(t^{2+…}) with non-smooth powers and the pointwise
-// forcing at t_0 cap the order (fvi_lobatto.md §7.3–7.4: 3.5 for s = 3, 4 at 2α = 0.6, 2–2.4 at
-// 2α = 1.5; Lubich correction weights in their direct form lower it instead: fvi_lobatto.md §13).
+// 2 for fractional damping (fvi_lobatto.md §13.5, "The declared order"): on smooth data the cap is
+// min(2s − 2, s + 2 − 2α) (§13.1), but with split = "taylor" the first steps' error (x − P has
+// non-smooth powers at t_0) brings the order over all nodes, which the Richardson error estimate
+// reads, to 1.8–2.5 at 2α = 1.5 (§7.4, §13.2); split = "series" lifts the positions to the cap, but
+// its velocities are not measured and this order cannot depend on the options.
 //
 // s = 2 with 1 < 2α < 2: the positions keep order 2, but the node momentum p_{n+1} = F_{n,2}
 // carries h b_2 R G_{n,2}, the RKCQ's stage value of D^{2α}x, whose error near t_0 is of order
@@ -1381,7 +1383,7 @@ const SchemeInfo kFviLobatto3 = lobatto_row<3>(
     "fvi-lobatto3",
     "FVI with the Lobatto-Galerkin discrete Lagrangian on 3 nodes and Lobatto IIIC (s = 3) "
     "Runge-Kutta CQ memory on the stage values; implicit damping",
-    "4 (2 for fractional 2alpha: regularity at t0)",
+    "4 (2 for fractional 2alpha; its cap on smooth data min(4, 5 - 2alpha), theory 13)",
     "lambda_max(M^-1 Hess U) h^2 < 8; 0 < 2alpha < 1: also a measured bound on "
     "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)");
 
@@ -1389,7 +1391,7 @@ const SchemeInfo kFviLobatto4 = lobatto_row<4>(
     "fvi-lobatto4",
     "FVI with the Lobatto-Galerkin discrete Lagrangian on 4 nodes and Lobatto IIIC (s = 4) "
     "Runge-Kutta CQ memory on the stage values; implicit damping",
-    "6 (2 for fractional 2alpha: regularity at t0)",
+    "6 (2 for fractional 2alpha; its cap on smooth data 6 - 2alpha, theory 13)",
     "lambda_max(M^-1 Hess U) h^2 < 30; 0 < 2alpha < 1: also a measured bound on "
     "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)");
 
