@@ -860,6 +860,33 @@ SplitOrders split_orders(int s, const SplitStudy& study, TaylorSplit split,
   return orders;
 }
 
+/// For each study and s = 2, 3, 4: the orders without (split = "taylor") and with the series,
+/// N = 8 … 128 (s = 2: 16 … 256); with the series at least the study's required order at the
+/// sample times and over all nodes, and over all nodes not below the order without (less 0.15).
+void expect_split_orders(const std::vector<SplitStudy>& studies) {
+  for (const SplitStudy& study : studies) {
+    for (const int s : {2, 3, 4}) {
+      const std::vector<std::size_t> steps = s == 2 ? std::vector<std::size_t>{16, 32, 64, 128, 256}
+                                                    : std::vector<std::size_t>{8, 16, 32, 64, 128};
+      const SplitOrders without = split_orders(s, study, TaylorSplit::kTaylor, steps);
+      const SplitOrders with = split_orders(s, study, TaylorSplit::kSeries, steps);
+      std::printf("  %s, %s: samples %.2f -> %.2f, all nodes %.2f -> %.2f\n",
+                  scheme_name(s).c_str(), study.label.c_str(), without.samples.slope,
+                  with.samples.slope, without.nodes.slope, with.nodes.slope);
+      ::testing::Test::RecordProperty("order_" + test_key(study.label) + "_s" + std::to_string(s),
+                                      sci(without.samples.slope) + " / " +
+                                          sci(without.nodes.slope) + " -> " +
+                                          sci(with.samples.slope) + " / " + sci(with.nodes.slope));
+      ASSERT_TRUE(without.nodes.valid && with.nodes.valid && with.samples.valid);
+      const double required = study.required[static_cast<std::size_t>(s - 2)];
+      std::printf("    required with the series: >= %.2f\n", required);
+      EXPECT_GE(with.samples.slope, required) << study.label << with.samples.table();
+      EXPECT_GE(with.nodes.slope, required) << study.label << with.nodes.table();
+      EXPECT_GE(with.nodes.slope, without.nodes.slope - 0.15) << study.label << with.nodes.table();
+    }
+  }
+}
+
 // Measured when this was written (fitted slopes, at the sample times / over all nodes; N = 8 …
 // 128, s = 2: 16 … 256), without → with the series:
 //
@@ -905,27 +932,7 @@ TEST(LobattoSeriesSplit, RecoversTheStartUpOrderAgainstLaplaceInversion) {
            {1.85, 3.7, 4.9}});
     }
   }
-  for (const SplitStudy& study : studies) {
-    for (const int s : {2, 3, 4}) {
-      const std::vector<std::size_t> steps = s == 2 ? std::vector<std::size_t>{16, 32, 64, 128, 256}
-                                                    : std::vector<std::size_t>{8, 16, 32, 64, 128};
-      const SplitOrders without = split_orders(s, study, TaylorSplit::kTaylor, steps);
-      const SplitOrders with = split_orders(s, study, TaylorSplit::kSeries, steps);
-      std::printf("  %s, %s: samples %.2f -> %.2f, all nodes %.2f -> %.2f\n",
-                  scheme_name(s).c_str(), study.label.c_str(), without.samples.slope,
-                  with.samples.slope, without.nodes.slope, with.nodes.slope);
-      ::testing::Test::RecordProperty("order_" + test_key(study.label) + "_s" + std::to_string(s),
-                                      sci(without.samples.slope) + " / " +
-                                          sci(without.nodes.slope) + " -> " +
-                                          sci(with.samples.slope) + " / " + sci(with.nodes.slope));
-      ASSERT_TRUE(without.nodes.valid && with.nodes.valid && with.samples.valid);
-      const double required = study.required[static_cast<std::size_t>(s - 2)];
-      std::printf("    required with the series: >= %.2f\n", required);
-      EXPECT_GE(with.samples.slope, required) << study.label << with.samples.table();
-      EXPECT_GE(with.nodes.slope, required) << study.label << with.nodes.table();
-      EXPECT_GE(with.nodes.slope, without.nodes.slope - 0.15) << study.label << with.nodes.table();
-    }
-  }
+  expect_split_orders(studies);
 }
 
 // The series split keeps the structure (§13.3): the mirror is still exact (the y-equation
@@ -1131,27 +1138,7 @@ TEST(LobattoSeriesSplit, PowerLawForcingWithDataAgainstLaplaceInversion) {
         ForcingLoad::kMoments};
     studies.push_back(study);
   }
-  for (const SplitStudy& study : studies) {
-    for (const int s : {2, 3, 4}) {
-      const std::vector<std::size_t> steps = s == 2 ? std::vector<std::size_t>{16, 32, 64, 128, 256}
-                                                    : std::vector<std::size_t>{8, 16, 32, 64, 128};
-      const SplitOrders without = split_orders(s, study, TaylorSplit::kTaylor, steps);
-      const SplitOrders with = split_orders(s, study, TaylorSplit::kSeries, steps);
-      std::printf("  %s, %s: samples %.2f -> %.2f, all nodes %.2f -> %.2f\n",
-                  scheme_name(s).c_str(), study.label.c_str(), without.samples.slope,
-                  with.samples.slope, without.nodes.slope, with.nodes.slope);
-      ::testing::Test::RecordProperty("order_" + test_key(study.label) + "_s" + std::to_string(s),
-                                      sci(without.samples.slope) + " / " +
-                                          sci(without.nodes.slope) + " -> " +
-                                          sci(with.samples.slope) + " / " + sci(with.nodes.slope));
-      ASSERT_TRUE(without.nodes.valid && with.nodes.valid && with.samples.valid);
-      const double need = study.required[static_cast<std::size_t>(s - 2)];
-      std::printf("    required with the series: >= %.2f\n", need);
-      EXPECT_GE(with.samples.slope, need) << study.label << with.samples.table();
-      EXPECT_GE(with.nodes.slope, need) << study.label << with.nodes.table();
-      EXPECT_GE(with.nodes.slope, without.nodes.slope - 0.15) << study.label << with.nodes.table();
-    }
-  }
+  expect_split_orders(studies);
 }
 
 // The structure with a power-law forcing (§13.3): the mirror is exact and the energy account
