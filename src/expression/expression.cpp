@@ -2,6 +2,8 @@
 #include <algorithm>
 #include <charconv>
 #include <climits>
+#include <cmath>
+#include <map>
 #include <numbers>
 
 #include "graph.hpp"
@@ -160,6 +162,113 @@ std::optional<int> degree_in(const ExpressionData& d, const std::vector<bool>& i
   return static_cast<int>(root);
 }
 
+// power_laws(): every node as a finite sum Σ c_j u^{γ_j} in u = v − origin (a map γ → c, zero
+// terms dropped), children before parents; nullopt for a node that is not one. Products and
+// integer powers of sums are expanded, up to kMaxPowerLaws terms (beyond: nullopt).
+using PowerSum = std::map<double, double>;
+constexpr std::size_t kMaxPowerLaws = 64;
+
+// Exponents that differ from an integer by round-off (t^(1/3)^3) are that integer, so that equal
+// powers meet in one term.
+double snap_exponent(double gamma) {
+  const double whole = std::round(gamma);
+  return std::abs(gamma - whole) < 1e-12 ? whole : gamma;
+}
+
+void add_term(PowerSum& sum, double gamma, double c) {
+  const double key = snap_exponent(gamma);
+  const double total = (sum[key] += c);
+  if (total == 0.0) sum.erase(key);
+}
+
+std::optional<PowerSum> product(const PowerSum& a, const PowerSum& b) {
+  if (a.size() * b.size() > kMaxPowerLaws * kMaxPowerLaws) return std::nullopt;
+  PowerSum out;
+  for (const auto& [ga, ca] : a)
+    for (const auto& [gb, cb] : b) add_term(out, ga + gb, ca * cb);
+  if (out.size() > kMaxPowerLaws) return std::nullopt;
+  return out;
+}
+
+// (c u^γ)^p for one term: c^p u^{γp}; a negative c only for integer p (no complex values), 0^p
+// only for p > 0.
+std::optional<PowerSum> term_power(const PowerSum& a, double p) {
+  if (a.empty()) return p > 0.0 ? std::optional<PowerSum>(PowerSum{}) : std::nullopt;
+  if (a.size() != 1) return std::nullopt;
+  const auto [gamma, c] = *a.begin();
+  if (c < 0.0 && p != std::round(p)) return std::nullopt;
+  PowerSum out;
+  add_term(out, gamma * p, std::pow(c, p));
+  return out;
+}
+
+std::optional<PowerSum> integer_power(const PowerSum& a, std::int32_t n) {
+  if (a.size() <= 1 || n < 0) return term_power(a, n);
+  PowerSum out{{0.0, 1.0}};
+  for (std::int32_t i = 0; i < n; ++i) {
+    auto next = product(out, a);
+    if (!next) return std::nullopt;
+    out = std::move(*next);
+  }
+  return out;
+}
+
+std::optional<PowerSum> power_sum_of(const ExpressionData& d, std::size_t var, double origin) {
+  std::vector<std::optional<PowerSum>> sums(d.nodes.size());
+  for (std::size_t i = 0; i < d.nodes.size(); ++i) {
+    const Node& node = d.nodes[i];
+    auto operand = [&](NodeId id) -> const std::optional<PowerSum>& {
+      return sums[static_cast<std::size_t>(id)];
+    };
+    std::optional<PowerSum>& out = sums[i];
+    if (node.op == Op::kConst) {
+      out.emplace();
+      add_term(*out, 0.0, node.value);
+      continue;
+    }
+    if (node.op == Op::kVar) {
+      if (static_cast<std::size_t>(node.b) != var) continue;  // another variable: not in v alone
+      out.emplace();
+      add_term(*out, 1.0, 1.0);
+      add_term(*out, 0.0, origin);  // v = u + origin
+      continue;
+    }
+    if (!operand(node.a) || (is_binary(node.op) && !operand(node.b))) continue;
+    const PowerSum& a = *operand(node.a);
+    switch (node.op) {
+      case Op::kAdd:
+      case Op::kSub: {
+        out = a;
+        const double sign = node.op == Op::kAdd ? 1.0 : -1.0;
+        for (const auto& [gamma, c] : *operand(node.b)) add_term(*out, gamma, sign * c);
+        if (out->size() > kMaxPowerLaws) out.reset();
+        break;
+      }
+      case Op::kNeg:
+        out = a;
+        for (auto& term : *out) term.second = -term.second;
+        break;
+      case Op::kMul: out = product(a, *operand(node.b)); break;
+      case Op::kDiv: {
+        // By one term c u^γ only: multiplication by (c u^γ)^{−1}.
+        const PowerSum& b = *operand(node.b);
+        if (b.size() != 1) break;
+        if (auto inverse = term_power(b, -1.0)) out = product(a, *inverse);
+        break;
+      }
+      case Op::kPowInt: out = integer_power(a, node.b); break;
+      case Op::kSqrt: out = term_power(a, 0.5); break;
+      case Op::kPow: {
+        const Node& exponent = d.nodes[static_cast<std::size_t>(node.b)];
+        if (exponent.op == Op::kConst) out = term_power(a, exponent.value);
+        break;
+      }
+      default: break;  // a transcendental function of u, or of a sum of powers
+    }
+  }
+  return sums[static_cast<std::size_t>(d.root)];
+}
+
 }  // namespace
 }  // namespace internal
 
@@ -259,6 +368,20 @@ std::optional<int> Expression::polynomial_degree(std::span<const std::size_t> va
 bool Expression::is_polynomial_of_degree_at_most(int degree) const {
   const auto d = polynomial_degree();
   return d && *d <= degree;
+}
+
+std::optional<std::vector<PowerLaw>> Expression::power_laws(std::size_t var, double origin) const {
+  if (var >= data_->variables.size())
+    throw std::invalid_argument("Expression::power_laws: variable index " + std::to_string(var) +
+                                " out of range");
+  const auto sum = internal::power_sum_of(*data_, var, origin);
+  if (!sum) return std::nullopt;
+  std::vector<PowerLaw> laws;
+  for (const auto& [gamma, c] : *sum) {
+    if (!std::isfinite(gamma) || !std::isfinite(c)) return std::nullopt;
+    laws.push_back({gamma, c});
+  }
+  return laws;
 }
 
 std::size_t Expression::node_count() const {

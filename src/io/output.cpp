@@ -55,6 +55,7 @@ MechanicalModel make_mechanical_model(const ProblemSpec& spec) {
     auto forces = make_expression_forces(spec.dim, spec.force);
     m.forcing = std::move(forces.forcing);
     m.state_force = std::move(forces.state_force);
+    m.forcing_formulas = std::move(forces.forcing_formulas);
   }
   return m;
 }

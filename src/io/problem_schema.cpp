@@ -211,7 +211,9 @@ std::vector<ProblemField> make_schema() {
        [](P p) { return Json(p.load); }},
       {"method", "split", "string", in_quotes(d.split),
        "what the Lobatto schemes take out of x at t0: taylor (x0 + t v0, from the memory) or "
-       "series (also the solution's fractional Taylor terms; linear problems without forcing)",
+       "series (also the solution's fractional Taylor terms; linear problems whose force is a sum "
+       "of "
+       "power laws in t - t0)",
        FRACVI_BINDING(IntegratorOptions, split), [](P p) { return Json(p.split); }},
       {"method", "error_estimate", "string", in_quotes(d.error_estimate),
        "a-posteriori error estimate: richardson (runs with N/2, N/4 steps) or none",

@@ -90,15 +90,22 @@ void ExpressionPotential::hessian_values(const Eigen::Ref<const Eigen::VectorXd>
   derivatives_.evaluate(s.args, s.gradient, values, s.workspace);
 }
 
-Forcing make_expression_forcing(const std::vector<std::string>& force) {
-  if (force.empty()) return {};
-  auto components =
-      std::make_shared<const std::vector<Expression>>(parse_expressions(force, {"t"}));
+namespace {
+
+Forcing forcing_of(std::vector<Expression> formulas) {
+  auto components = std::make_shared<const std::vector<Expression>>(std::move(formulas));
   return [components](double t, Eigen::Ref<Eigen::VectorXd> out) {
     const double args[] = {t};
     for (std::size_t i = 0; i < components->size(); ++i)
       out[static_cast<Eigen::Index>(i)] = (*components)[i](args);
   };
+}
+
+}  // namespace
+
+Forcing make_expression_forcing(const std::vector<std::string>& force) {
+  if (force.empty()) return {};
+  return forcing_of(parse_expressions(force, {"t"}));
 }
 
 std::vector<std::string> ExpressionForce::variable_names(Eigen::Index dimension) {
@@ -181,8 +188,11 @@ ExpressionForces make_expression_forces(Eigen::Index dimension,
       break;
     }
   }
-  if (in_t_alone) return {make_expression_forcing(force), nullptr};
-  return {{}, std::make_shared<const ExpressionForce>(dimension, force)};
+  if (in_t_alone) {
+    std::vector<Expression> formulas = parse_expressions(force, {"t"});
+    return {forcing_of(formulas), nullptr, std::move(formulas)};
+  }
+  return {{}, std::make_shared<const ExpressionForce>(dimension, force), {}};
 }
 
 }  // namespace fracvi

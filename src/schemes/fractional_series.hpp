@@ -1,13 +1,14 @@
 // The fractional Taylor expansion of a linear problem at t_0 (method.split = "series"; internal
 // to the Lobatto schemes, docs/theory/fvi_lobatto.md §13).
 //
-// For M x'' + R D^β x + K x + g_0 = 0 (M, R, K constant, g_0 = ∇U(0), no forcing) the solution is
+// For M x'' + R D^β x + K x = Σ_φ b_φ τ^φ (M, R, K constant; the right-hand side a finite sum of
+// power laws, φ ≥ 0: the power-law forcing f minus g_0 = ∇U(0) at φ = 0) the solution is
 // x(t_0 + τ) = Σ_γ c_γ τ^γ over the exponents γ = k + l(2 − β) (and 2 − β + … for
-// Riemann–Liouville data) generated from c_0 = x_0, c_1 = v_0. With D^β τ^γ = g(γ) τ^{γ−β},
-// g(γ) = Γ(γ + 1)/Γ(γ + 1 − β) (0 for the Caputo derivative of τ^0, and of τ^1 when β > 1),
-// the coefficient of τ^e in the equation is
+// Riemann–Liouville data, φ + 2 + … for the loads) generated from c_0 = x_0, c_1 = v_0. With
+// D^β τ^γ = g(γ) τ^{γ−β}, g(γ) = Γ(γ + 1)/Γ(γ + 1 − β) (0 for the Caputo derivative of τ^0, and
+// of τ^1 when β > 1), the coefficient of τ^e in the equation is
 //
-//   (e + 2)(e + 1) M c_{e+2} + g(e + β) R c_{e+β} + K c_e + [e = 0] g_0 = 0,
+//   (e + 2)(e + 1) M c_{e+2} + g(e + β) R c_{e+β} + K c_e = b_e,
 //
 // which gives c_{e+2} from coefficients of lower exponents (e + β < e + 2 for β < 2): the exponents
 // are processed in increasing order of e.
@@ -39,16 +40,20 @@ inline double power_derivative_factor(double gamma, double beta, bool caputo) {
 
 /// The terms c_γ τ^γ of the expansion with 1 < γ ≤ largest (x_0 and v_0, the Taylor polynomial,
 /// are not returned), in increasing γ; terms whose coefficient is exactly zero are left out.
+/// Exponents as integer keys (10⁻⁹ resolution): sums of 1, 2, ±β and the loads' exponents must
+/// meet exactly.
+inline long long exponent_key(double e) {
+  return std::llround(e * 1e9);
+}
+
 inline std::vector<SeriesTerm> fractional_series(const Eigen::MatrixXd& mass,
                                                  const Eigen::MatrixXd& damping,
                                                  const Eigen::MatrixXd& stiffness,
-                                                 const Eigen::VectorXd& constant_force, double beta,
+                                                 const std::vector<SeriesTerm>& loads, double beta,
                                                  bool caputo, const Eigen::VectorXd& x0,
                                                  const Eigen::VectorXd& v0, double largest) {
-  // Exponents as integer keys (10⁻⁹ resolution): sums of 1, 2 and ±β must meet exactly.
-  constexpr double kResolution = 1e9;
-  auto key = [](double e) { return std::llround(e * kResolution); };
-  auto exponent = [](long long k) { return static_cast<double>(k) / kResolution; };
+  auto key = exponent_key;
+  auto exponent = [](long long k) { return static_cast<double>(k) / 1e9; };
   const Eigen::FullPivLU<Eigen::MatrixXd> mass_lu(mass);
   std::map<long long, Eigen::VectorXd> c;
   std::set<long long> equations;
@@ -57,6 +62,12 @@ inline std::vector<SeriesTerm> fractional_series(const Eigen::MatrixXd& mass,
     equations.insert(key(gamma));
     if (power_derivative_factor(gamma, beta, caputo) != 0.0) equations.insert(key(gamma - beta));
   };
+  std::map<long long, Eigen::VectorXd> load;  // b_φ
+  for (const SeriesTerm& term : loads) {
+    const auto [it, inserted] = load.try_emplace(key(term.exponent), term.coefficient);
+    if (!inserted) it->second += term.coefficient;
+    equations.insert(it->first);
+  }
   add_solution(0.0, x0);
   add_solution(1.0, v0);
   const Eigen::Index d = x0.size();
@@ -72,7 +83,7 @@ inline std::vector<SeriesTerm> fractional_series(const Eigen::MatrixXd& mass,
     const double factor = (e + 2.0) * (e + 1.0);
     if (std::abs(factor) < 1e-12) continue;
     Eigen::VectorXd rhs = Eigen::VectorXd::Zero(d);
-    if (k == 0) rhs -= constant_force;
+    if (const auto it = load.find(k); it != load.end()) rhs += it->second;
     if (const auto it = c.find(k); it != c.end()) rhs -= stiffness * it->second;
     if (const auto it = c.find(key(e + beta)); it != c.end()) {
       rhs -= power_derivative_factor(exponent(it->first), beta, caputo) * (damping * it->second);

@@ -40,6 +40,7 @@
 #include <boost/math/special_functions/gamma.hpp>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -1031,9 +1032,11 @@ std::string lobatto_applicability(const InitialValueProblem& problem) {
 }
 
 // 2s − 2 where the solution is smooth at t_0 (integer 2α: the RKCQ is exact and local, or R = 0);
-// 2 for fractional damping, where x − P = O(t^{2+…}) with non-smooth powers and the pointwise
-// forcing at t_0 cap the order (fvi_lobatto.md §7.3–7.4: 3.5 for s = 3, 4 at 2α = 0.6, 2–2.4 at
-// 2α = 1.5; Lubich correction weights in their direct form lower it instead: fvi_lobatto.md §13).
+// 2 for fractional damping (fvi_lobatto.md §13.5, "The declared order"): on smooth data the cap is
+// min(2s − 2, s + 2 − 2α) (§13.1), but with split = "taylor" the first steps' error (x − P has
+// non-smooth powers at t_0) brings the order over all nodes, which the Richardson error estimate
+// reads, to 1.8–2.5 at 2α = 1.5 (§7.4, §13.2); split = "series" lifts the positions to the cap, but
+// its velocities are not measured and this order cannot depend on the options.
 //
 // s = 2 with 1 < 2α < 2: the positions keep order 2, but the node momentum p_{n+1} = F_{n,2}
 // carries h b_2 R G_{n,2}, the RKCQ's stage value of D^{2α}x, whose error near t_0 is of order
@@ -1047,36 +1050,79 @@ int lobatto_order(int s, const MechanicalModel& model) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// method.split = "series" (fvi_lobatto.md §13.3): the change of variables x = w + S(t), S the
-// fractional Taylor terms c_γ τ^γ (1 < γ ≤ 2s − 1, τ = t − t_0) of the solution of the linear
-// problem M x'' + R D^β x + K x + g_0 = 0, computed from the data and the equation
+// method.split = "series" (fvi_lobatto.md §13.3, §13.5): the change of variables x = w + S(t), S
+// the fractional Taylor terms c_γ τ^γ (1 < γ ≤ 2s − 1, τ = t − t_0) of the solution of the linear
+// problem M x'' + R D^β x + K x + g_0 = f(t) with f a finite sum of power laws Σ f_φ τ^φ (from the
+// force formulas: Expression::power_laws), computed from the data and the equation
 // (fractional_series.hpp). The Lobatto stepper integrates the remainder w — same M, R, U, data
 // (S(t_0) = Ṡ(t_0) = 0), Taylor split P — under the forcing
 //
-//   f_w(t) = −(M S''(t) + R D^β S(t) + K S(t)) = −Σ_γ [γ(γ − 1) M c_γ τ^{γ−2} + g(γ) R c_γ τ^{γ−β}
-//            + K c_γ τ^γ]
+//   f_w(t) = f(t) − (M S''(t) + R D^β S(t) + K S(t)) = Σ_φ f_φ τ^φ − Σ_γ [γ(γ − 1) M c_γ τ^{γ−2}
+//            + g(γ) R c_γ τ^{γ−β} + K c_γ τ^γ],
 //
-// by its exact moments (method.load = "moments": tanh–sinh on the first interval, where
-// τ^{γ−2} may be singular). w = x − P − S vanishes to order > 2s − 1 at t_0, so neither the memory
-// nor the Galerkin part meets the non-smooth terms. The state is reported for x: x_k = w_k +
-// S(t_k), v_k = v^w_k + Ṡ(t_k), p_k = p^w_k + M Ṡ(t_k); the energy account is the remainder's,
-// E_w + W_w − E_{w,0} (W reported as W_w + (E_w − E_x) − (E_{w,0} − E_{x,0})), and the mirror run
-// is the remainder's, compared with x − S.
+// its equal powers merged (a forcing whose response the series holds exactly, such as the
+// Bagley–Torvik problems with exact t³ and t^{5/2}, leaves f_w at round-off), by its exact moments
+// (method.load = "moments": tanh–sinh on the first interval, where τ^{γ−2} may be singular).
+// w = x − P − S vanishes to order > 2s − 1 at t_0, so neither the memory nor the Galerkin part
+// meets the non-smooth terms. The state is reported for x: x_k = w_k + S(t_k), v_k = v^w_k +
+// Ṡ(t_k), p_k = p^w_k + M Ṡ(t_k); the energy account is the remainder's, E_w + W_w − E_{w,0} (W
+// reported as W_w + (E_w − E_x) − (E_{w,0} − E_{x,0})), and the mirror run is the remainder's,
+// compared with x − S.
 
-struct ShiftLoad {
-  double exponent = 0.0;  // of τ
-  Eigen::VectorXd value;  // −(the term's coefficient vector)
+// S's terms and f's power laws (both in τ, coefficient vectors of size d).
+struct SeriesSplit {
+  std::vector<SeriesTerm> terms, forcing;
 };
 
-// The series of `problem` (validated: linear, no force, terms bounded on [t_0, t_end]).
-std::vector<SeriesTerm> series_for(int s, const InitialValueProblem& problem) {
+// The power laws f_φ τ^φ of the force formulas, per exponent; refused unless every component is
+// a finite sum of power laws in t − t_0 with φ ≥ 0 (empty without forcing).
+std::vector<SeriesTerm> forcing_power_laws(const InitialValueProblem& problem, const char* field) {
+  const MechanicalModel& model = problem.model;
+  if (!model.forcing) return {};
+  const Eigen::Index d = model.dimension();
+  if (static_cast<Eigen::Index>(model.forcing_formulas.size()) != d) {
+    throw ValidationError(std::string(field) +
+                          " needs the force as formulas in t (model.force in a problem file or "
+                          "Python's force strings), to read its power laws: this problem's force "
+                          "is a function; use \"taylor\"");
+  }
+  const std::string rule =
+      "must be a finite sum of c*(t - t0)^g with constants c and g >= 0 (sums, constant factors, "
+      "powers and sqrt of t - t0; t0 = " +
+      format_number(problem.t0) + ")";
+  std::map<long long, SeriesTerm> laws;
+  for (Eigen::Index i = 0; i < d; ++i) {
+    const Expression& formula = model.forcing_formulas[static_cast<std::size_t>(i)];
+    const auto component = formula.power_laws(0, problem.t0);
+    const std::string value =
+        "model.force component " + std::to_string(i + 1) + " = \"" + formula.text() + "\"";
+    if (!component) {
+      throw ValidationError(std::string(field) + ": " + value + " " + rule + "; use \"taylor\"");
+    }
+    for (const PowerLaw& law : *component) {
+      if (law.exponent < 0.0) {
+        throw ValidationError(std::string(field) + ": " + value + " has the power (t - t0)^" +
+                              format_number(law.exponent) + ", and " + rule + "; use \"taylor\"");
+      }
+      auto [it, inserted] = laws.try_emplace(exponent_key(law.exponent),
+                                             SeriesTerm{law.exponent, Eigen::VectorXd::Zero(d)});
+      it->second.coefficient(i) += law.coefficient;
+    }
+  }
+  std::vector<SeriesTerm> forcing;
+  for (auto& [key, term] : laws) forcing.push_back(std::move(term));
+  return forcing;
+}
+
+// The series of `problem` (validated: linear, forcing a sum of power laws, terms bounded on
+// [t_0, t_end]).
+SeriesSplit series_for(int s, const InitialValueProblem& problem) {
   const char* const field = "method.split = \"series\"";
   const MechanicalModel& model = problem.model;
-  if (model.forcing || model.state_force) {
+  if (model.state_force) {
     throw ValidationError(std::string(field) +
-                          " needs the expansion of every force at t0, which a formula does not "
-                          "give: only for problems without model.force (this one has a force); "
-                          "use \"taylor\"");
+                          " is for linear problems: a force g(x, v, t) (model.force in x or v) has "
+                          "no fractional series; use \"taylor\"");
   }
   const Potential* potential = model.potential.get();
   if (potential != nullptr &&
@@ -1086,38 +1132,50 @@ std::vector<SeriesTerm> series_for(int s, const InitialValueProblem& problem) {
                           "Hessian, e.g. model.stiffness): the potential of this problem is not; "
                           "use \"taylor\"");
   }
+  SeriesSplit split{{}, forcing_power_laws(problem, field)};
   const Eigen::Index d = model.dimension();
   const double beta = model.damping_order();
-  if (model.is_undamped() || beta == 0.0) return {};  // no memory: nothing to remove
+  if (model.is_undamped() || beta == 0.0) return split;  // no memory: nothing to remove
   Eigen::MatrixXd stiffness = Eigen::MatrixXd::Zero(d, d);
-  Eigen::VectorXd constant_force = Eigen::VectorXd::Zero(d);
+  // The right-hand side's power laws: f, and −g_0 = −∇U(0) at φ = 0.
+  std::vector<SeriesTerm> loads = split.forcing;
   if (potential != nullptr) {
     potential->hessian(problem.x0, problem.t0, stiffness);
+    Eigen::VectorXd constant_force(d);
     potential->gradient(Eigen::VectorXd::Zero(d), problem.t0, constant_force);
+    loads.push_back({0.0, -constant_force});
   }
-  std::vector<SeriesTerm> terms = fractional_series(
-      model.mass.symmetric_part().to_dense(), model.damping.symmetric_part().to_dense(), stiffness,
-      constant_force, beta, model.convention == Convention::kCaputo, problem.x0, problem.v0,
-      2.0 * s - 1.0);
+  const Eigen::MatrixXd mass = model.mass.symmetric_part().to_dense();
+  split.terms = fractional_series(mass, model.damping.symmetric_part().to_dense(), stiffness, loads,
+                                  beta, model.convention == Convention::kCaputo, problem.x0,
+                                  problem.v0, 2.0 * s - 1.0);
   // S grows like τ^{2s−1}: x = w + S then adds large numbers, and loses their round-off. Refused
-  // when a term at t_end exceeds 10³ times the Taylor polynomial there.
+  // when a term at t_end exceeds 10³ times the size the data and the loads give x: the Taylor
+  // polynomial and each load's first response M⁻¹ b_φ τ^{φ+2}/((φ + 1)(φ + 2)).
   const double span = problem.t_end - problem.t0;
-  const double taylor_size =
+  double natural_size =
       std::max({problem.x0.cwiseAbs().maxCoeff(), span * problem.v0.cwiseAbs().maxCoeff(),
                 std::numeric_limits<double>::min()});
-  for (const SeriesTerm& term : terms) {
+  const Eigen::FullPivLU<Eigen::MatrixXd> mass_lu(mass);
+  for (const SeriesTerm& load : loads) {
+    const double phi = load.exponent;
+    natural_size =
+        std::max(natural_size, mass_lu.solve(load.coefficient).cwiseAbs().maxCoeff() *
+                                   std::pow(span, phi + 2.0) / ((phi + 1.0) * (phi + 2.0)));
+  }
+  for (const SeriesTerm& term : split.terms) {
     const double size = term.coefficient.cwiseAbs().maxCoeff() * std::pow(span, term.exponent);
-    if (!(size <= 1e3 * taylor_size)) {
+    if (!(size <= 1e3 * natural_size)) {
       throw ValidationError(
           std::string(field) + ": the series term of exponent " + format_number(term.exponent) +
           " reaches " + format_number(size) +
-          " at time.t_end, more than 10^3 times the Taylor polynomial (" +
-          format_number(taylor_size) +
-          "): its round-off would cost more than the series gains; shorten the interval or use "
-          "\"taylor\"");
+          " at time.t_end, more than 10^3 times the size the data and the forcing give x (" +
+          format_number(natural_size) +
+          ": the Taylor polynomial and each force term's first response): its round-off would "
+          "cost more than the series gains; shorten the interval or use \"taylor\"");
     }
   }
-  return terms;
+  return split;
 }
 
 class SeriesShiftStepper final : public Stepper {
@@ -1126,8 +1184,8 @@ class SeriesShiftStepper final : public Stepper {
                      const IntegratorOptions& options)
       : problem_(problem),
         diagnostics_(options.diagnostics),
-        terms_(series_for(stages, problem)),
-        remainder_(remainder_problem(problem, terms_)),
+        split_(series_for(stages, problem)),
+        remainder_(remainder_problem(problem, split_)),
         mass_(problem.model.mass.symmetric_part()),
         c_(lobatto_iiic(stages).c) {
     IntegratorOptions inner = options;
@@ -1147,7 +1205,9 @@ class SeriesShiftStepper final : public Stepper {
   [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override {
-    return diagnostics_ ? 0.0 : kNaN;  // no force, U independent of t (series_for)
+    // U is independent of t (series_for); the work of a force f is not tracked here: the
+    // remainder's account books f_w, not f.
+    return diagnostics_ && split_.forcing.empty() ? 0.0 : kNaN;
   }
   [[nodiscard]] LinearSolver linear_solver() const override { return stepper_->linear_solver(); }
   [[nodiscard]] HistoryReport history() const override { return stepper_->history(); }
@@ -1171,9 +1231,9 @@ class SeriesShiftStepper final : public Stepper {
 
  private:
   static InitialValueProblem remainder_problem(const InitialValueProblem& problem,
-                                               const std::vector<SeriesTerm>& terms) {
+                                               const SeriesSplit& split) {
     InitialValueProblem remainder = problem;
-    if (terms.empty()) return remainder;
+    if (split.terms.empty()) return remainder;
     const MechanicalModel& model = problem.model;
     const double beta = model.damping_order();
     const bool caputo = model.convention == Convention::kCaputo;
@@ -1182,20 +1242,30 @@ class SeriesShiftStepper final : public Stepper {
     if (model.potential) model.potential->hessian(problem.x0, problem.t0, stiffness);
     const Eigen::MatrixXd mass = model.mass.symmetric_part().to_dense();
     const Eigen::MatrixXd damping = model.damping.symmetric_part().to_dense();
-    std::vector<ShiftLoad> loads;
-    for (const SeriesTerm& term : terms) {
+    // f_w's power laws, equal exponents merged.
+    std::map<long long, SeriesTerm> merged;
+    auto add = [&](double exponent, const Eigen::VectorXd& value) {
+      auto [it, inserted] = merged.try_emplace(exponent_key(exponent), SeriesTerm{exponent, value});
+      if (!inserted) it->second.coefficient += value;
+    };
+    for (const SeriesTerm& law : split.forcing) add(law.exponent, law.coefficient);
+    for (const SeriesTerm& term : split.terms) {
       const double gamma = term.exponent;
-      loads.push_back({gamma - 2.0, -gamma * (gamma - 1.0) * (mass * term.coefficient)});
+      add(gamma - 2.0, -gamma * (gamma - 1.0) * (mass * term.coefficient));
       const double factor = power_derivative_factor(gamma, beta, caputo);
-      if (factor != 0.0) loads.push_back({gamma - beta, -factor * (damping * term.coefficient)});
-      loads.push_back({gamma, -(stiffness * term.coefficient)});
+      if (factor != 0.0) add(gamma - beta, -factor * (damping * term.coefficient));
+      add(gamma, -(stiffness * term.coefficient));
     }
+    std::vector<SeriesTerm> loads;
+    for (auto& [key, load] : merged)
+      if (!load.coefficient.isZero(0.0)) loads.push_back(std::move(load));
     const double t0 = problem.t0;
     remainder.model.forcing = [loads, t0](double t, Eigen::Ref<Eigen::VectorXd> out) {
       out.setZero();
       const double tau = std::max(t - t0, 0.0);
-      for (const ShiftLoad& load : loads) out += std::pow(tau, load.exponent) * load.value;
+      for (const SeriesTerm& load : loads) out += std::pow(tau, load.exponent) * load.coefficient;
     };
+    remainder.model.forcing_formulas.clear();
     return remainder;
   }
 
@@ -1204,7 +1274,7 @@ class SeriesShiftStepper final : public Stepper {
     shift.setZero();
     rate.setZero();
     const double tau = std::max(t - problem_.t0, 0.0);
-    for (const SeriesTerm& term : terms_) {
+    for (const SeriesTerm& term : split_.terms) {
       shift += std::pow(tau, term.exponent) * term.coefficient;
       rate += (term.exponent * std::pow(tau, term.exponent - 1.0)) * term.coefficient;
     }
@@ -1248,7 +1318,7 @@ class SeriesShiftStepper final : public Stepper {
 
   const InitialValueProblem& problem_;
   bool diagnostics_;
-  std::vector<SeriesTerm> terms_;
+  SeriesSplit split_;
   InitialValueProblem remainder_;  // the stepper keeps a reference: declared before it
   ModelMatrix mass_;
   Eigen::VectorXd c_;
@@ -1313,7 +1383,7 @@ const SchemeInfo kFviLobatto3 = lobatto_row<3>(
     "fvi-lobatto3",
     "FVI with the Lobatto-Galerkin discrete Lagrangian on 3 nodes and Lobatto IIIC (s = 3) "
     "Runge-Kutta CQ memory on the stage values; implicit damping",
-    "4 (2 for fractional 2alpha: regularity at t0)",
+    "4 (2 for fractional 2alpha; its cap on smooth data min(4, 5 - 2alpha), theory 13)",
     "lambda_max(M^-1 Hess U) h^2 < 8; 0 < 2alpha < 1: also a measured bound on "
     "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)");
 
@@ -1321,7 +1391,7 @@ const SchemeInfo kFviLobatto4 = lobatto_row<4>(
     "fvi-lobatto4",
     "FVI with the Lobatto-Galerkin discrete Lagrangian on 4 nodes and Lobatto IIIC (s = 4) "
     "Runge-Kutta CQ memory on the stage values; implicit damping",
-    "6 (2 for fractional 2alpha: regularity at t0)",
+    "6 (2 for fractional 2alpha; its cap on smooth data 6 - 2alpha, theory 13)",
     "lambda_max(M^-1 Hess U) h^2 < 30; 0 < 2alpha < 1: also a measured bound on "
     "lambda_max(M^-1 R) h^(2-2alpha) (docs/theory/fvi_lobatto.md section 8)");
 

@@ -806,5 +806,47 @@ TEST(ExpressionEvaluation, ConstObjectWithPerThreadWorkspacesIsThreadSafe) {
   EXPECT_EQ(b, serial);
 }
 
+// power_laws(): the power-law forcings of method.split = "series" (fvi_lobatto.md §13.5).
+TEST(Expression, PowerLawsOfSumsProductsAndPowers) {
+  const std::vector<std::string> t{"t"};
+  auto laws = [&](const std::string& text, double origin) {
+    return Expression::parse(text, t).power_laws(0, origin);
+  };
+  auto expect_laws = [&](const std::string& text, double origin,
+                         const std::vector<std::pair<double, double>>& expected) {
+    const auto got = laws(text, origin);
+    ASSERT_TRUE(got.has_value()) << text;
+    ASSERT_EQ(got->size(), expected.size()) << text;
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+      EXPECT_DOUBLE_EQ((*got)[i].exponent, expected[i].first) << text;
+      EXPECT_DOUBLE_EQ((*got)[i].coefficient, expected[i].second) << text;
+    }
+  };
+  const double pi = std::numbers::pi;
+  // The Bagley–Torvik forcings, constants folded (sqrt(pi), 16/(5 sqrt(pi))).
+  expect_laws("t^3 + 6*t + 16/(5*sqrt(pi))*t^2.5", 0.0,
+              {{1.0, 6.0}, {2.5, 16.0 / (5.0 * std::sqrt(pi))}, {3.0, 1.0}});
+  expect_laws("15/4*sqrt(t) + 15*sqrt(pi)/8*t + t^(5/2)", 0.0,
+              {{0.5, 3.75}, {1.0, 15.0 * std::sqrt(pi) / 8.0}, {2.5, 1.0}});
+  // Products, quotients by one term, integer powers of sums (expanded), equal powers merged,
+  // cancellation dropped.
+  expect_laws("(1 + t)^2 - t*t", 0.0, {{0.0, 1.0}, {1.0, 2.0}});
+  expect_laws("t^3/(2*t^0.5) + pow(4*t, 1.5) - 7", 0.0, {{0.0, -7.0}, {1.5, 8.0}, {2.5, 0.5}});
+  expect_laws("-(t - 2)^2", 2.0, {{2.0, -1.0}});
+  // Around the origin t0: t − t0 is the variable; integer powers of t expand, t^2.5 does not.
+  expect_laws("(t - 1)^1.5 + t", 1.0, {{0.0, 1.0}, {1.0, 1.0}, {1.5, 1.0}});
+  expect_laws("t^2", 1.0, {{0.0, 1.0}, {1.0, 2.0}, {2.0, 1.0}});
+  EXPECT_FALSE(laws("t^2.5", 1.0).has_value());
+  // Not sums of power laws.
+  for (const char* text : {"sin(t)", "sqrt(1 + t)", "exp(t)", "abs(t)", "t^t", "1/(1 + t)",
+                           "(-t)^0.5", "heaviside(t - 1)"})
+    EXPECT_FALSE(laws(text, 0.0).has_value()) << text;
+  // Another variable.
+  EXPECT_FALSE(Expression::parse("x*t", {"x", "t"}).power_laws(1, 0.0).has_value());
+  EXPECT_THROW((void)Expression::parse("t", t).power_laws(1, 0.0), std::invalid_argument);
+  // Negative exponents are reported (the caller decides): 1/t.
+  expect_laws("1/t", 0.0, {{-1.0, 1.0}});
+}
+
 }  // namespace
 }  // namespace fracvi

@@ -69,6 +69,12 @@ class ExpressionError : public std::invalid_argument {
   std::size_t column_;
 };
 
+/// One term c·(v − origin)^γ of Expression::power_laws.
+struct PowerLaw {
+  double exponent = 0.0;     ///< γ
+  double coefficient = 0.0;  ///< c
+};
+
 /// An immutable scalar formula in a fixed, ordered list of variables. Cheap to copy (shared
 /// state); all const members are safe to call concurrently.
 class Expression {
@@ -115,6 +121,16 @@ class Expression {
   /// degree 2 in {x} (a linear equation of motion with a time-dependent force) and none in {x, t}.
   std::optional<int> polynomial_degree(std::span<const std::size_t> vars) const;
   bool is_polynomial_of_degree_at_most(int degree) const;
+
+  /// The expression as a finite sum Σ_j c_j (v − origin)^{γ_j} of power laws in the variable
+  /// v = variables()[var] (no other variable may appear), γ_j real and increasing, c_j ≠ 0 (0: no
+  /// term); nullopt when it is not one. Recognised: constants, v, sums, differences, products,
+  /// integer powers (sums expanded, up to 64 terms), quotients by one term, and constant powers and
+  /// sqrt of one term (a negative coefficient only to an integer power). So t^3 + 6*t +
+  /// 16/(5*sqrt(pi))*t^2.5 at origin 0 and (t - 1)^1.5 at origin 1 are sums of power laws;
+  /// t^1.5 at origin 1, (1 + t)^0.5, sin(t) and abs(t) are not (method.split = "series" folds a
+  /// power-law forcing into its fractional series, docs/theory/fvi_lobatto.md §13.5).
+  std::optional<std::vector<PowerLaw>> power_laws(std::size_t var, double origin) const;
 
   /// Number of DAG nodes (a size diagnostic).
   std::size_t node_count() const;

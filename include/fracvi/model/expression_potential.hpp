@@ -103,6 +103,7 @@ class ExpressionForce final : public StateForce {
 struct ExpressionForces {
   Forcing forcing;
   std::shared_ptr<const StateForce> state_force;
+  std::vector<Expression> forcing_formulas;  ///< those of `forcing` (MechanicalModel)
 };
 ExpressionForces make_expression_forces(Eigen::Index dimension,
                                         const std::vector<std::string>& force);

@@ -32,7 +32,9 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <vector>
 
+#include "fracvi/expression/expression.hpp"
 #include "fracvi/model/model_matrix.hpp"
 #include "fracvi/model/potential.hpp"
 #include "fracvi/model/state_force.hpp"
@@ -71,6 +73,11 @@ struct MechanicalModel {
   Convention convention = Convention::kCaputo;
   std::shared_ptr<const Potential> potential;  ///< U; null means U ≡ 0
   Forcing forcing;                             ///< f; empty means f ≡ 0
+  /// The formulas in t that `forcing` evaluates, one per component, when it was made from
+  /// formulas (problem files, Python: make_expression_forces); empty otherwise. A scheme that
+  /// needs f's form reads them (method.split = "series": its power laws in t − t0); whoever
+  /// replaces `forcing` replaces or clears them.
+  std::vector<Expression> forcing_formulas;
   /// g(x, v, t), the non-conservative force; null means g ≡ 0. Schemes without a discrete
   /// Lagrange–d'Alembert form for it refuse it before step 1 (SchemeInfo::no_state_force).
   std::shared_ptr<const StateForce> state_force;
