@@ -1111,6 +1111,25 @@ std::vector<SeriesTerm> forcing_power_laws(const InitialValueProblem& problem, c
   }
   std::vector<SeriesTerm> forcing;
   for (auto& [key, term] : laws) forcing.push_back(std::move(term));
+  // The formulas stand for `forcing` only if nobody replaced one without the other (a C++ caller
+  // may): compare them at a few times of the run, to 1e-10 of the force's size.
+  Eigen::VectorXd f(d), sum(d);
+  for (const double share : {0.0, 0.1234, 0.5, 0.8765, 1.0}) {
+    const double t = problem.t0 + share * (problem.t_end - problem.t0);
+    model.forcing(t, f);
+    sum.setZero();
+    for (const SeriesTerm& term : forcing) {
+      sum +=
+          term.coefficient * (term.exponent == 0.0 ? 1.0 : std::pow(t - problem.t0, term.exponent));
+    }
+    if (!((f - sum).lpNorm<Eigen::Infinity>() <= 1e-10 * (1.0 + f.lpNorm<Eigen::Infinity>()))) {
+      throw ValidationError(
+          std::string(field) +
+          ": model.forcing differs from model.forcing_formulas at t = " + format_number(t) +
+          " (max difference " + format_number((f - sum).lpNorm<Eigen::Infinity>()) +
+          "): the formulas must be those of the force; use \"taylor\"");
+    }
+  }
   return forcing;
 }
 

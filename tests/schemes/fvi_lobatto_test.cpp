@@ -1192,6 +1192,20 @@ TEST(LobattoSeriesSplit, PowerLawForcingMirrorEnergyAccountAndRefusals) {
   EXPECT_NE(other_origin.find("t0 = 1"), std::string::npos);
   // The integer powers of t expand around any t0: t^3 on [1, 2] is accepted.
   EXPECT_EQ(refusal("t^3 + 6*t", 1.0), "(accepted)");
+  // A C++ caller that replaces the force but not its formulas is refused, not integrated with the
+  // formulas' force.
+  InitialValueProblem stale = bagley_torvik(0.25, "t^3", 16);
+  stale.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> out) { out(0) = t * t * t + 0.5; };
+  try {
+    (void)integrate(stale, Method(lobatto(3)), options);
+    ADD_FAILURE() << "a force that differs from its formulas was accepted";
+  } catch (const ValidationError& e) {
+    EXPECT_NE(
+        std::string(e.what()).find("model.forcing differs from model.forcing_formulas at t = 0 "
+                                   "(max difference 0.5)"),
+        std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace
