@@ -118,9 +118,17 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
 
 void CqMidpointStepper::tilde(const Eigen::Ref<const Eigen::VectorXd>& x, std::size_t i,
                               Eigen::VectorXd& out) const {
-  out = x;
-  if (shift_x0_) out -= problem_.x0;
-  if (shift_v0_) out -= (static_cast<double>(i) * h_) * problem_.v0;
+  // One pass per case, the same roundings as x, then −x_0, then −t_i v_0 in turn.
+  const double t = static_cast<double>(i) * h_;
+  if (shift_x0_ && shift_v0_) {
+    out = x - problem_.x0 - t * problem_.v0;
+  } else if (shift_x0_) {
+    out = x - problem_.x0;
+  } else if (shift_v0_) {
+    out = x - t * problem_.v0;
+  } else {
+    out = x;
+  }
 }
 
 void CqMidpointStepper::add_polynomial_force(std::size_t k, Eigen::VectorXd& s) const {
