@@ -118,9 +118,17 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
 
 void CqMidpointStepper::tilde(const Eigen::Ref<const Eigen::VectorXd>& x, std::size_t i,
                               Eigen::VectorXd& out) const {
-  out = x;
-  if (shift_x0_) out -= problem_.x0;
-  if (shift_v0_) out -= (static_cast<double>(i) * h_) * problem_.v0;
+  // One pass per case, the same roundings as x, then −x_0, then −t_i v_0 in turn.
+  const double t = static_cast<double>(i) * h_;
+  if (shift_x0_ && shift_v0_) {
+    out = x - problem_.x0 - t * problem_.v0;
+  } else if (shift_x0_) {
+    out = x - problem_.x0;
+  } else if (shift_v0_) {
+    out = x - t * problem_.v0;
+  } else {
+    out = x;
+  }
 }
 
 void CqMidpointStepper::add_polynomial_force(std::size_t k, Eigen::VectorXd& s) const {
@@ -164,8 +172,12 @@ Status CqMidpointStepper::advance() {
   } else {
     // p⁺_k = p_k − (h/2) F_k, then M Δ_k + (h²/2)∇U_f(x_k + Δ_k/2, t_{k+½}) = h p⁺_k for the
     // increment Δ_k = x_{k+1} − x_k. Predictor: the previous increment (h v_0 at k = 0).
-    p_plus_ = p_ - ((k == 0 ? start_force_weight_ : 0.5) * h_) * force_;
-    rhs_ = h_ * p_plus_;
+    // p⁺_k and the right-hand side h p⁺_k in one pass (the same roundings as two).
+    const double impulse = (k == 0 ? start_force_weight_ : 0.5) * h_;
+    for (Eigen::Index i = 0; i < d_; ++i) {
+      p_plus_[i] = p_[i] - impulse * force_[i];
+      rhs_[i] = h_ * p_plus_[i];
+    }
     if (k == 0) dx_ = h_ * problem_.v0;
     const NewtonReport report = newton_.solve(xk, t_half, rhs_, f_ptr, dx_);
     if (const Status s = newton_outcome(report, "M + (h^2/4) Hess U"); s != Status::kSuccess)
@@ -174,8 +186,12 @@ Status CqMidpointStepper::advance() {
     mass_.multiply(dx_, p_minus_);
     p_minus_ = p_minus_ * (2.0 / h_) - p_plus_;  // one pass, the same roundings as *= then -=
   }
-  x_next_ = xk + dx_;
-  if (!x_next_.allFinite()) return fail(Status::kNonFinite, "non-finite position");
+  bool finite = true;  // x_{k+1} and its check in one pass
+  for (Eigen::Index i = 0; i < d_; ++i) {
+    x_next_[i] = xk[i] + dx_[i];
+    finite &= std::isfinite(x_next_[i]);
+  }
+  if (!finite) return fail(Status::kNonFinite, "non-finite position");
 
   // Damping force at the new point, grid momentum p_{k+1} = p⁻_{k+1} − (h/2)F_{k+1}, velocity.
   if (viscous_local_ && damped_) {

@@ -27,6 +27,21 @@ LinearSolver resolve(LinearSolver solver, const ModelMatrix& A, const Potential*
   return solver == LinearSolver::kAuto ? choose_factorization(*pattern) : solver;
 }
 
+// increment −= δ; returns max|δ_i| and clears `finite` when some updated entry is not finite.
+double apply_correction(const Eigen::VectorXd& delta, Eigen::Ref<Eigen::VectorXd> increment,
+                        bool& finite) {
+  double correction = 0.0;
+  bool all_finite = true;
+  for (Eigen::Index i = 0; i < delta.size(); ++i) {
+    const double updated = increment[i] - delta[i];
+    increment[i] = updated;
+    correction = std::max(correction, std::abs(delta[i]));
+    all_finite &= std::isfinite(updated);
+  }
+  finite = all_finite;
+  return correction;
+}
+
 }  // namespace
 
 MidpointNewton::MidpointNewton(ModelMatrix A, double h, const Potential* potential,
@@ -163,7 +178,8 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
                                    Eigen::Ref<Eigen::VectorXd> increment) {
   NewtonReport report;
   const int max_iterations = linear_ ? 1 : options_.max_iterations;
-  const double a_norm = a.cwiseAbs().maxCoeff();
+  // The scale of the convergence test; a linear step has none (one pass fewer per step).
+  const double a_norm = linear_ ? 0.0 : a.cwiseAbs().maxCoeff();
   for (int it = 1; it <= max_iterations; ++it) {
     mid_ = a + 0.5 * increment;
     effective_gradient(mid_, tau, forcing_tau, grad_);
@@ -173,8 +189,8 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
       grad_ -= force_value_;
     }
     A_.multiply(increment, residual_);
-    residual_ += half_h2_ * grad_;
-    residual_ -= c;
+    // One pass, the same roundings as += then −=: (M Δ + (h²/2) g) − c element by element.
+    residual_ = residual_ + half_h2_ * grad_ - c;
     report.iterations = it;
     if (!residual_.allFinite()) {
       report.status = Status::kNonFinite;
@@ -186,15 +202,18 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
       report.correction = std::numeric_limits<double>::infinity();
       return report;
     }
+    // δ overwrites the residual in place (no copy pass); the update, the size of the correction
+    // and the finiteness check share one pass (max is exact: the same correction as before).
+    Eigen::VectorXd* delta = &residual_;
     if (backend_ == LinearSolver::kDense) {
       delta_ = lu_.solve(residual_);
+      delta = &delta_;
     } else {
-      delta_ = residual_;
-      factor_->solve_in_place(delta_);
+      factor_->solve_in_place(residual_);
     }
-    increment -= delta_;
-    report.correction = delta_.cwiseAbs().maxCoeff();
-    if (!std::isfinite(report.correction) || !increment.allFinite()) {
+    bool finite = true;
+    report.correction = apply_correction(*delta, increment, finite);
+    if (!finite || !std::isfinite(report.correction)) {
       report.status = Status::kNonFinite;
       return report;
     }
