@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "fracvi/internal/parallel.hpp"
+#include "fracvi/internal/vectorize.hpp"
 
 namespace fracvi {
 
@@ -29,12 +30,6 @@ std::shared_ptr<const ExponentialFit> checked_fit(std::shared_ptr<const Exponent
   return fit;
 }
 
-#if defined(__GNUC__) && !defined(__clang__)
-#define FRACVI_INDEPENDENT_ITERATIONS _Pragma("GCC ivdep")
-#else
-#define FRACVI_INDEPENDENT_ITERATIONS
-#endif
-
 // One block of rows of FastHistory::push(): the K recursions Y_j ← e^{−λ_j} Y_j + x̃_{k−n0} with
 // the tail Σ_j w_j Y_j, then the sum = tail + the window's exact weights against the last n0
 // values. Plain loops over restrict pointers (the Eigen block expressions of the same loop ran at
@@ -54,13 +49,9 @@ struct FastHistoryBlock {
   const double* head_reversed;
 };
 
-// This kernel is most of a step of a large system (bench/RESULTS.md). The README's build is
-// portable x86-64 (SSE2, no FMA), so the kernel carries an x86-64-v3 clone (AVX2 + FMA) that the
-// dynamic loader picks on CPUs that have it (GCC's target_clones: an ifunc resolved once at load
-// time, no per-call dispatch); other compilers and architectures get the portable loop.
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__AVX2__)
-__attribute__((target_clones("default", "arch=x86-64-v3")))
-#endif
+// This kernel is most of a step of a large system (bench/RESULTS.md): it carries an x86-64-v3
+// clone (internal/vectorize.hpp).
+FRACVI_HOT_KERNEL
 void push_block(const FastHistoryBlock& blk) {
   // The restrict pointers live in the scope of one loop each: x̃_{k−n0} and the slot x̃_k takes
   // are the same memory, read by the first loop and written by the second. Four recursions (and
@@ -75,8 +66,7 @@ void push_block(const FastHistoryBlock& blk) {
     for (Eigen::Index i = 0; i < n; ++i) tail[i] = 0.0;
     Eigen::Index j = 0;
     for (; j + 4 <= terms; j += 4) {
-      // Four columns of one array: GCC does not vectorise them as restrict pointers ("no vectype"),
-      // but does with the promise that the iterations are independent.
+      // Four columns of one array: restrict pointers would not vectorise (vectorize.hpp).
       double* y0 = state + j * stride;
       double* y1 = state + (j + 1) * stride;
       double* y2 = state + (j + 2) * stride;
