@@ -323,6 +323,8 @@ void FastBlockHistory::push(const Eigen::Ref<const Eigen::MatrixXd>& block) {
               head_.data()});
     }
   };
+  // The pushes before the window is full skip the recursions: the thread choice measures again.
+  if (size_ == static_cast<std::size_t>(window_)) team_.restart();
   internal::for_blocks(d, team_, update);
   ++size_;
 }

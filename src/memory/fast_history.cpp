@@ -215,6 +215,8 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
     }
   };
   const Eigen::Index d = ring_.rows();
+  // The pushes before the window is full skip the recursions: the thread choice measures again.
+  if (size_ == static_cast<std::size_t>(window_)) team_.restart();
   internal::for_blocks(d, team_, update);
   ++size_;
 }

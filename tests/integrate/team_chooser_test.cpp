@@ -1,6 +1,6 @@
 // The measured thread count of the fast histories' push (internal/team_chooser.hpp):
 //  * the trial / hold cycle of TeamChooser on synthetic call times (which count it picks, when
-//    it measures again, that a requested count is used as given);
+//    it measures again, the untimed warm-up calls, that a requested count is used as given);
 //  * the choice never changes a result: FastHistory and FastBlockHistory sums with threads = 0
 //    (measured: one thread for the first trial's calls, the team for the second's, then the
 //    faster) are bitwise those of threads = 1 and of a fixed team of 2, over pushes that cover
@@ -41,8 +41,8 @@ TEST(TeamChooser, PicksTheFasterCountAndMeasuresAgainAfterTheHold) {
   team.configure(0, 2);
   ASSERT_TRUE(team.measuring());
   EXPECT_EQ(trial(team, 1e-3, 0.6e-3), 2);  // the team is faster: held on 2 threads
-  // The hold lasts max(0.5 s, 32 × the trials' 25.6 ms) = 0.82 s of calls.
-  const double hold = 32.0 * kTrial * (1e-3 + 0.6e-3);
+  // The hold lasts max(0.5 s, 32 × the trials' timed 2 × 14 calls, 22.4 ms) = 0.72 s of calls.
+  const double hold = 32.0 * (kTrial - TeamChooser::kWarmCalls) * (1e-3 + 0.6e-3);
   const int calls = static_cast<int>(hold / 0.6e-3);
   for (int i = 0; i < calls - 1; ++i) {
     ASSERT_EQ(team.next(), 2) << "hold call " << i;
@@ -50,6 +50,21 @@ TEST(TeamChooser, PicksTheFasterCountAndMeasuresAgainAfterTheHold) {
   }
   team.record(2 * 0.6e-3);  // the hold is over: trials again, and now the machine is busy
   EXPECT_EQ(trial(team, 1e-3, 5e-3), 1);
+}
+
+TEST(TeamChooser, WarmUpCallsAreNotTimedAndRestartMeasuresAgain) {
+  TeamChooser team;
+  team.configure(0, 2);
+  // The team's first calls are slow (a thread wakes, data move between caches), the rest fast.
+  for (int i = 0; i < kTrial; ++i) team.record(1e-3);
+  for (int i = 0; i < kTrial; ++i) team.record(i < TeamChooser::kWarmCalls ? 50e-3 : 0.5e-3);
+  EXPECT_EQ(team.next(), 2);
+  // Negative control: the same slow call after the warm-up counts.
+  team.restart();
+  EXPECT_EQ(team.next(), 1);
+  for (int i = 0; i < kTrial; ++i) team.record(1e-3);
+  for (int i = 0; i < kTrial; ++i) team.record(i == TeamChooser::kWarmCalls ? 50e-3 : 0.5e-3);
+  EXPECT_EQ(team.next(), 1);
 }
 
 TEST(TeamChooser, ShortCallsHoldForHalfASecond) {

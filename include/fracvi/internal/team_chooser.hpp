@@ -13,14 +13,17 @@ namespace fracvi::internal {
 /// parallel region waits for a core that is not free (fvi-lobatto3, d = 1000: 5 times slower on
 /// two threads than on one at load 5; bench/RESULTS.md). So, with threads = 0 (auto) and work at
 /// or above the threshold, the loop alternates trials — kTrialCalls calls on one thread, then as
-/// many on the team — keeps the faster for a hold of at least kHoldSeconds (and 32 times the
-/// trials' time, so that trials cost at most a few per cent), and measures again. Each degree of
-/// freedom's arithmetic does not depend on the partition, so the choice never changes a result.
-/// requested ≥ 1 is used as given (above the threshold). No allocation, no system call but the
-/// clock's.
+/// many on the team, the first kWarmCalls of each not timed (the data move to the other core's
+/// cache, a sleeping thread wakes) — keeps the faster for a hold of at least kHoldSeconds (and 32
+/// times the trials' time, so that trials cost at most a few per cent), and measures again. The
+/// caller restarts the trials when its work per call changes (a history once its window is full).
+/// Each degree of freedom's arithmetic does not depend on the partition, so the choice never
+/// changes a result. requested ≥ 1 is used as given (above the threshold). No allocation, no system
+/// call but the clock's.
 class TeamChooser {
  public:
   static constexpr int kTrialCalls = 16;
+  static constexpr int kWarmCalls = 2;
   static constexpr double kHoldSeconds = 0.5;
 
   /// requested: 0 = measured, n ≥ 1 = n threads; team: the threads a call may use
@@ -29,10 +32,14 @@ class TeamChooser {
   void configure(int requested, int team) {
     team_ = std::max(team, 1);
     adaptive_ = requested == 0 && team_ > 1;
+    chosen_ = team_;
+    restart();
+  }
+  /// Starts a new pair of trials (the calls so far do not represent the ones to come).
+  void restart() {
     phase_ = Phase::kTrialOne;
     calls_ = 0;
-    one_ = team_time_ = held_ = 0.0;
-    chosen_ = team_;
+    one_ = team_time_ = 0.0;
   }
   /// The largest team a call may use (for start_threads at set-up).
   [[nodiscard]] int team() const { return team_; }
@@ -48,14 +55,14 @@ class TeamChooser {
   void record(double seconds) {
     switch (phase_) {
       case Phase::kTrialOne:
-        one_ += seconds;
+        if (calls_ >= kWarmCalls) one_ += seconds;
         if (++calls_ == kTrialCalls) {
           phase_ = Phase::kTrialTeam;
           calls_ = 0;
         }
         return;
       case Phase::kTrialTeam:
-        team_time_ += seconds;
+        if (calls_ >= kWarmCalls) team_time_ += seconds;
         if (++calls_ == kTrialCalls) {
           chosen_ = team_time_ < one_ ? team_ : 1;
           hold_ = std::max(kHoldSeconds, 32.0 * (one_ + team_time_));
@@ -65,11 +72,7 @@ class TeamChooser {
         return;
       case Phase::kHold:
         held_ += seconds;
-        if (held_ >= hold_) {
-          phase_ = Phase::kTrialOne;
-          calls_ = 0;
-          one_ = team_time_ = 0.0;
-        }
+        if (held_ >= hold_) restart();
         return;
     }
   }
