@@ -200,6 +200,17 @@ TEST_F(NoAllocation, BandedChainWithThreadedFastHistory) {
   EXPECT_EQ(allocations_while_stepping(integ), 0u);
 }
 
+// threads = 0: the history times its pushes and switches between one thread and the team
+// (internal::TeamChooser); 200 steps cover both trials and the restart when the window fills.
+TEST_F(NoAllocation, BandedChainWithMeasuredThreadCount) {
+  IntegratorOptions options;
+  options.history = HistoryKind::kFast;
+  options.threads = 0;
+  Integrator integ(large_chain(8000, 200, 1), fvi_gl(), options);
+  ASSERT_EQ(integ.linear_solver(), LinearSolver::kBanded);
+  EXPECT_EQ(allocations_while_stepping(integ), 0u);
+}
+
 TEST_F(NoAllocation, ThreadedChainPotential) {
   IntegratorOptions options;
   options.history = HistoryKind::kFast;

@@ -27,8 +27,18 @@ inline int team_size(int requested, Eigen::Index work, Eigen::Index threshold) {
 /// region and reuses it afterwards): call during set-up so that the step loop does not allocate.
 inline void start_threads(int threads) {
   if (threads <= 1) return;
+  // A body the compiler cannot drop: GCC removes an empty region, and then the team was first
+  // created (malloc, pthread_create) by the step loop's first parallel region
+  // (tests/integrate/allocation_test.cpp, BandedChainWithMeasuredThreadCount).
+  int started = 0;
 #pragma omp parallel num_threads(threads)
-  {}
+  {
+#pragma omp atomic
+    started += 1;
+  }
+#if defined(__GNUC__)
+  asm volatile("" : : "r"(started) : "memory");
+#endif
 }
 
 /// body(lo, hi) on contiguous blocks covering [0, n), one per thread.
