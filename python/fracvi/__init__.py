@@ -557,7 +557,10 @@ class Problem:
                          doc="method.max_steps: the ceiling of that doubling")
     threads = property(lambda self: self._spec.threads, doc="method.threads (0: measured, one thread or all cores)")
     every = property(lambda self: self._spec.every,
-                     doc="output.every: the solution stores every n-th state and the last")
+                     doc="output.every: the solution stores every n-th state and the last; "
+                         "\"auto\" (the default): every state up to 10^5 steps, beyond the "
+                         "smallest power of two that keeps 10^5 + 1 (Solution.save_every is the "
+                         "stride used)")
     format = property(lambda self: self._spec.format,
                       doc='output.format: "csv" (trajectory.csv) or "npz" (trajectory.npz)')
 
@@ -812,7 +815,10 @@ def _with_output(problem, fields, t_eval, formulas, dense, function):
         problem = Problem.from_dict(document, source=problem.source)
     if dense:
         every = fields.get("every", problem.every)
-        if every != 1:
+        if every == "auto":
+            # dense=True asks for every step: "auto" (not a stride the user chose) becomes 1.
+            fields = dict(fields, every=1)
+        elif every != 1:
             raise ValueError(f"dense=True needs every step stored (output.every = 1): sol(t) "
                              f"interpolates between consecutive steps; output.every = {every!r} "
                              f"(t_eval= gives exact-order values at chosen times with any every)")
@@ -854,7 +860,7 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=None, diagnostic
     schemes take out of x at t0), error_estimate ("richardson": the Solution's
     error_estimate from companion runs with N/2 and N/4 steps, about 0.75 of the cost more; or
     "none"), tolerance (> 0: N doubled from steps until error_estimate <= tolerance, up to
-    max_steps; summary()["tolerance_runs"] lists the runs), threads (0: measured, one thread or all cores), every (store every n-th state)) may be
+    max_steps; summary()["tolerance_runs"] lists the runs), threads (0: measured, one thread or all cores), every (store every n-th state; "auto": every state up to 10^5 steps, then thinned by a power of two)) may be
     given as a keyword: it overrides the problem's value, is validated by the same reader as a
     problem file, and is recorded in summary(). An unknown keyword is a TypeError naming the valid
     ones. mirror is method.mirror (the backward run of the mirror equation and mirror_error, a

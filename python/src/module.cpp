@@ -1090,7 +1090,11 @@ void bind(py::module_& m) {
       .def_readonly("tolerance", &ProblemSpec::tolerance)
       .def_readonly("max_steps", &ProblemSpec::max_steps)
       .def_readonly("threads", &ProblemSpec::threads)
-      .def_readonly("every", &ProblemSpec::every)
+      .def_property_readonly("every",
+                             [](const ProblemSpec& s) -> py::object {
+                               if (s.every == kAutoEvery) return py::str("auto");
+                               return py::int_(s.every);
+                             })
       .def("to_dict", [](const ProblemSpec& s) { return to_python(to_json(s)); })
       .def("to_toml", [](const ProblemSpec& s) { return to_toml(s); });
 

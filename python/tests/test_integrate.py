@@ -327,12 +327,27 @@ def test_memory_is_estimated_before_allocating():
     if (2_000_000_000 + 1) * (16 * 2 + 40) <= memory:
         pytest.skip("this machine could hold 2e9 stored states of d = 2")
     with pytest.raises(fracvi.ProblemError) as e:
-        fracvi.integrate(fracvi.Problem.from_toml(PROBLEM).with_overrides("time.steps=2000000000"))
+        fracvi.integrate(fracvi.Problem.from_toml(PROBLEM).with_overrides("time.steps=2000000000",
+                                                                          "output.every=1"))
     message = str(e.value)
     assert "time.steps = 2000000000 with output.every = 1: the stored trajectory" in message
     assert "more than this machine's memory" in message and "[output] every = n" in message
     with pytest.raises(fracvi.ProblemError, match="model.dim = 1000000000000: the first and last"):
         fracvi.Problem.from_toml(PROBLEM).with_overrides("model.dim=1000000000000")
+
+
+def test_every_auto_thins_long_runs_only():
+    # output.every = "auto" (the default): every state up to 10^5 steps, beyond the smallest power
+    # of two keeping 10^5 + 1 rows; dense=True (interpolation between consecutive steps) takes 1.
+    problem = fracvi.Problem.from_toml(PROBLEM)
+    assert problem.every == "auto"
+    long_run = problem.with_overrides("time.steps=200001", "time.end=20")
+    sol = fracvi.integrate(long_run, mirror=False, error_estimate="none")
+    assert sol.save_every == 4 and len(sol.t) == 50001 + 1  # 0, 4, ..., 200000, and 200001
+    assert sol.step[-1] == 200001
+    dense = fracvi.integrate(long_run, mirror=False, error_estimate="none", dense=True)
+    assert dense.save_every == 1 and len(dense.t) == 200002
+    assert fracvi.integrate(problem, mirror=False, error_estimate="none").save_every == 1
 
 
 def test_ctrl_c_raises_keyboard_interrupt_with_the_partial_solution():

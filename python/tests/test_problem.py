@@ -105,7 +105,7 @@ def test_fields_are_resolved():
     np.testing.assert_array_equal(p.position, [1.0, 0.0])
     assert (p.start, p.end, p.steps, p.step) == (0.0, 5.0, 500, 0.01)
     assert (p.scheme, p.newton_tolerance, p.newton_max_iterations, p.every) == (
-        "auto", 1e-12, 50, 1)
+        "auto", 1e-12, 50, "auto")
     assert p.force == ["0.1*sin(t)", "0"]
     assert "cli-test" in repr(p)
 

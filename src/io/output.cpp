@@ -86,7 +86,7 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   o.tolerance = spec.tolerance;
   o.max_steps = static_cast<std::size_t>(spec.max_steps);
   o.threads = spec.threads;
-  o.save_every = static_cast<std::size_t>(spec.every);
+  o.save_every = static_cast<std::size_t>(stored_every(spec));
   o.mirror = mirror_check_runs(spec);
   o.output_times = spec.times;
   for (std::size_t i = 0; i < spec.events.size(); ++i) {

@@ -770,8 +770,20 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
   if (p.chain) p.chain->threads = p.threads;
   // [output]
   if (const auto* n = r.find("output", "every")) {
-    p.every = r.integer(*n, "output.every");
-    if (p.every < 1) r.fail("output.every", "= " + std::to_string(p.every) + " must be at least 1");
+    // "auto" (the default): from time.steps (stored_every, problem_file.hpp).
+    if (n->is_string()) {
+      const std::string value = r.string(*n, "output.every");
+      if (value != "auto") {
+        r.fail("output.every", "= \"" + value + "\" must be \"auto\" or an integer >= 1");
+      }
+      p.every = kAutoEvery;
+    } else {
+      p.every = r.integer(*n, "output.every");
+      if (p.every < 1) {
+        r.fail("output.every",
+               "= " + std::to_string(p.every) + " must be at least 1 (or \"auto\")");
+      }
+    }
   }
   if (const auto* n = r.find("output", "checkpoint_every")) {
     p.checkpoint_every = r.integer(*n, "output.checkpoint_every");
@@ -1049,6 +1061,14 @@ std::string to_toml(const ProblemSpec& p) {
   std::ostringstream os;
   os << to_toml_table(to_json(p), p.source, "") << '\n';
   return os.str();
+}
+
+long long stored_every(long long every, long long steps) {
+  if (every != kAutoEvery) return every;
+  long long stride = 1;
+  // ceil(steps / stride) ≤ kAutoStoredRows; steps ≤ 2·10^9 (checked), so no overflow.
+  while ((steps + stride - 1) / stride > kAutoStoredRows) stride *= 2;
+  return stride;
 }
 
 bool mirror_check_runs(const ProblemSpec& spec) {

@@ -233,9 +233,13 @@ std::vector<ProblemField> make_schema() {
       {"method", "threads", "integer", std::to_string(d.threads), "OpenMP threads; 0 = all",
        FRACVI_BINDING(IntegratorOptions, threads),
        [](P p) { return Json(static_cast<std::int64_t>(p.threads)); }},
-      {"output", "every", "integer", std::to_string(d.every), "store every n-th state",
+      {"output", "every", "integer or string", in_quotes("auto"),
+       "store every n-th state and the last; \"auto\": every state up to 10^5 steps, beyond the "
+       "smallest power of two that keeps 10^5 + 1",
        FRACVI_BINDING(IntegratorOptions, save_every),
-       [](P p) { return Json(static_cast<std::int64_t>(p.every)); }},
+       [](P p) {
+         return p.every == kAutoEvery ? Json("auto") : Json(static_cast<std::int64_t>(p.every));
+       }},
       {"output", "checkpoint_every", "integer", std::to_string(d.checkpoint_every),
        "fracvi run: write a checkpoint every n steps (0: none)",
        FRACVI_BINDING(ProblemSpec, checkpoint_every),

@@ -62,7 +62,8 @@ TEST(ProblemFile, DefaultsAndMatrixForms) {
   EXPECT_DOUBLE_EQ(p.step(), 0.1);
   EXPECT_EQ(p.scheme, "auto");
   EXPECT_EQ(p.newton_tolerance, 1e-12);
-  EXPECT_EQ(p.every, 1);
+  EXPECT_EQ(p.every, fracvi::kAutoEvery);
+  EXPECT_EQ(make_integrator_options(p).save_every, 1u);  // 20 steps: every state
   const ProblemSpec full = parse(with("mass = 1.0", "mass = [[2, 0.5], [0.5, 1]]"));
   EXPECT_EQ(full.mass(0, 1), 0.5);
   EXPECT_EQ(full.mass(0, 0), 2.0);
@@ -518,6 +519,26 @@ TEST(ProblemFile, LinearSolverAndThreads) {
   EXPECT_EQ(parse(kBase + "[method]\nthreads = 3\n").threads, 3);
   EXPECT_EQ(make_integrator_options(parse(kBase, {"method.threads=2"})).threads, 2);
   EXPECT_EQ(make_integrator_options(parse(kBase, {"output.every=7"})).save_every, 7u);
+  // "auto": every state up to 10^5 steps, then the smallest power of two keeping ≤ 10^5 + 1 rows
+  // (+ the last).
+  EXPECT_EQ(make_integrator_options(parse(kBase, {"output.every=\"auto\""})).save_every, 1u);
+  for (const auto& [steps, stride] :
+       std::vector<std::pair<long long, long long>>{{100'000, 1},
+                                                    {100'001, 2},
+                                                    {200'000, 2},
+                                                    {200'001, 4},
+                                                    {10'000'000, 128},
+                                                    {2'000'000'000, 32768}}) {
+    EXPECT_EQ(fracvi::stored_every(fracvi::kAutoEvery, steps), stride) << steps;
+    EXPECT_LE((steps + stride - 1) / stride, fracvi::kAutoStoredRows) << steps;
+    if (stride > 1) {  // the smallest such power: half of it would store too many
+      EXPECT_GT((steps + stride / 2 - 1) / (stride / 2), fracvi::kAutoStoredRows) << steps;
+    }
+  }
+  EXPECT_EQ(fracvi::stored_every(3, 10'000'000), 3);
+  EXPECT_EQ(make_integrator_options(parse(kBase, {"time.steps=10000000"})).save_every, 128u);
+  expect_error(kBase + "[output]\nevery = \"often\"\n",
+               {"output.every = \"often\" must be \"auto\" or an integer >= 1"});
 
   expect_error(kBase + "[method]\nlinear_solver = \"bandd\"\n",
                {"method.linear_solver = \"bandd\" is not one of auto, dense, banded, sparse",

@@ -130,8 +130,9 @@ struct ProblemSpec {
       IntegratorOptions{}.threads;  ///< OpenMP threads over the degrees of freedom; 0 = all
 
   // [output]
-  /// store every n-th step (IntegratorOptions::save_every) and the last
-  long long every = static_cast<long long>(IntegratorOptions{}.save_every);
+  /// store every n-th step (IntegratorOptions::save_every) and the last; kAutoEvery ("auto", the
+  /// default): chosen from time.steps by stored_every()
+  long long every = 0;
   /// `fracvi run` writes a checkpoint of the whole state every n steps (0: none), from which
   /// `fracvi run --resume DIR` continues bit-for-bit (io/checkpoint.hpp)
   long long checkpoint_every = 0;
@@ -164,6 +165,22 @@ inline constexpr std::string_view kPythonFunctionPrefix = "python:";
 /// schemes), so the check is nearly free; above it the check would double a long run's wait, and
 /// the error estimate, not the mirror, is what measures accuracy.
 inline constexpr long long kAutoMirrorWork = 1'000'000;
+
+/// ProblemSpec::every = "auto" (the default): every step while a run has at most kAutoStoredRows
+/// steps; beyond, the smallest power of two that keeps the stored states within kAutoStoredRows + 1
+/// (+ the last). Why: a run of 10^7 steps that stored every state kept 740 MB and wrote a 1.2 GB
+/// trajectory.csv (5.7 s of a 13 s run, bench/RESULTS.md), far more than a plot or a table reads;
+/// a power of two keeps every stored step on the grids of the error estimate's N/2 and N/4
+/// companion runs, which compare on the stored rows.
+inline constexpr long long kAutoEvery = 0;
+inline constexpr long long kAutoStoredRows = 100'000;
+
+/// The storage stride of a run of `steps` steps with output.every = `every` (kAutoEvery: the rule
+/// above; any other value is returned as it is).
+long long stored_every(long long every, long long steps);
+inline long long stored_every(const ProblemSpec& spec) {
+  return stored_every(spec.every, spec.steps);
+}
 
 /// Whether a run of `spec` runs the mirror check (method.mirror and, for "auto", kAutoMirrorWork).
 bool mirror_check_runs(const ProblemSpec& spec);
