@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cfloat>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -179,14 +181,79 @@ std::size_t chunk_begin(std::size_t p, std::size_t c) {
 
 }  // namespace
 
+namespace {
+
+// The recurrence of the LDLᵀ factor from row i to hi − 1, given the pivot x = d_i:
+//   d_i = x,  l_i = e_i / d_i,  d_{i+1} = a_{i+1} − l_i e_i,
+// LAPACK's dpttrf's operations in its order (ISO C++ mode keeps the products unfused), so the
+// numbers are dpttrf's bit for bit. With `check`, it stops at the first row whose stored d_i is x
+// already, bit for bit: the rest of the run was computed from that same value.
+void ldlt_run(std::size_t i, std::size_t hi, double x, bool check, std::size_t n, const double* a,
+              const double* e, double* d, double* l) noexcept {
+  for (; i < hi; ++i) {
+    if (check && std::bit_cast<std::uint64_t>(d[i]) == std::bit_cast<std::uint64_t>(x)) return;
+    d[i] = x;
+    if (i + 1 == n) return;
+    l[i] = e[i] / x;
+    x = a[i + 1] - l[i] * e[i];
+  }
+}
+
+}  // namespace
+
+// Each pivot waits for the previous one through a division and a multiply–add (≈ 20 cycles), so
+// LAPACK's dpttrf is latency-bound: ≈ 7 µs for d = 1000, twice per step of the β-FPUT chain.
+// Here the chunks of the solve run side by side, chunk p > 0 started as if e_{s−1} were 0
+// (d_s = a_s): kChunks independent recurrences keep the divider busy. Then, chunk by chunk from
+// the second, the recurrence is re-run from the true pivot d_s = a_s − l_{s−1} e_{s−1} until it
+// meets the stored value bit for bit. The map d_{i−1} ↦ d_i has derivative l_{i−1}², so a wrong
+// start is forgotten after a few rows for the chains' weak coupling (|l| ≈ h²k/4m); with strong
+// coupling the re-run is longer, at worst a whole sequential pass: the result is exact in any case.
+bool tridiagonal_ldlt(std::size_t n, const double* a, const double* e, double* d,
+                      double* l) noexcept {
+  if (n == 0) return true;
+  const std::size_t c = n / kChunks;
+  if (c < 2) {
+    ldlt_run(0, n, a[0], false, n, a, e, d, l);
+  } else {
+    std::array<double, kChunks> pivot{};
+    for (std::size_t p = 0; p < kChunks; ++p) pivot[p] = a[chunk_begin(p, c)];
+    for (std::size_t t = 0; t + 1 < c; ++t) {
+      for (std::size_t p = 0; p < kChunks; ++p) {
+        const std::size_t i = chunk_begin(p, c) + t;
+        d[i] = pivot[p];
+        l[i] = e[i] / pivot[p];
+        pivot[p] = a[i + 1] - l[i] * e[i];
+      }
+    }
+    for (std::size_t p = 0; p + 1 < kChunks; ++p) {
+      const std::size_t i = chunk_begin(p + 1, c) - 1;
+      d[i] = pivot[p];
+      l[i] = e[i] / pivot[p];
+    }
+    // The last chunk takes the rest of the rows: one run to n.
+    const std::size_t last = chunk_begin(kChunks - 1, c);
+    ldlt_run(last + c - 1, n, pivot[kChunks - 1], false, n, a, e, d, l);
+    for (std::size_t p = 1; p < kChunks; ++p) {
+      const std::size_t s = chunk_begin(p, c), hi = p + 1 < kChunks ? s + c : n;
+      ldlt_run(s, hi, a[s] - l[s - 1] * e[s - 1], true, n, a, e, d, l);
+    }
+  }
+  // dpttrf stops at the first d_i ≤ 0 (NaN passes, as there); a count, so that the test vectorises.
+  std::size_t non_positive = 0;
+  for (std::size_t i = 0; i < n; ++i) non_positive += d[i] <= 0.0;
+  return non_positive == 0;
+}
+
 void SymmetricFactor::prepare_chunked_solve(Banded& b) noexcept {
   const auto n = static_cast<std::size_t>(b.n);
   const std::size_t c = b.chunk;
   if (c == 0) return;
   const double* e = b.off.data();
-  for (std::size_t i = 0; i + 1 < n; ++i) {
-    if (!(std::abs(e[i]) <= kChunkedMaxCoupling)) return;  // NaN included: LAPACK's solve
-  }
+  // A count rather than an early exit, so that the test vectorises (NaN counts: LAPACK's solve).
+  std::size_t strong = 0;
+  for (std::size_t i = 0; i + 1 < n; ++i) strong += !(std::abs(e[i]) <= kChunkedMaxCoupling);
+  if (strong != 0) return;
   for (std::size_t i = 0; i < n; ++i) b.inverse_diag[i] = 1.0 / b.diag[i];
   // Forward spikes of chunks 1 … kChunks − 1, backward spikes of chunks 0 … kChunks − 2.
   for (std::size_t p = 0; p < kChunks; ++p) {
@@ -371,7 +438,7 @@ bool SymmetricFactor::factor_tridiagonal() noexcept {
   std::copy(b.diag.begin(), b.diag.end(), b.lu_d.begin());  // kept for the fallback
   std::copy(b.off.begin(), b.off.end(), b.lu_du.begin());
   b.use_chunks = false;
-  if (LAPACKE_dpttrf_work(b.n, b.diag.data(), b.off.data()) == 0) {
+  if (tridiagonal_ldlt(n, b.lu_d.data(), b.lu_du.data(), b.diag.data(), b.off.data())) {
     prepare_chunked_solve(b);
     return true;
   }

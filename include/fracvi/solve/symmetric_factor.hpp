@@ -121,6 +121,14 @@ class SymmetricFactor {
   std::unique_ptr<Sparse> sparse_;
 };
 
+/// The LDLᵀ factorisation of the symmetric tridiagonal matrix with diagonal a[0, n) and
+/// off-diagonal e[0, n − 1): the pivots d[0, n) and L's off-diagonal l[i] = e[i]/d[i] for i < n − 1
+/// (l[n − 1] untouched), the numbers of LAPACK's dpttrf bit for bit, computed in chunks side by
+/// side (symmetric_factor.cpp). Returns false if some d_i ≤ 0 (dpttrf's info > 0: J is not positive
+/// definite, and d, l are not its factor). a and e must not overlap d and l. No allocation.
+bool tridiagonal_ldlt(std::size_t n, const double* a, const double* e, double* d,
+                      double* l) noexcept;
+
 /// Where the stored entries of a ModelMatrix land in a pattern that contains them (its upper
 /// triangle; lower entries map onto their mirror and are skipped, so a symmetric A is counted
 /// once). Returns (pattern index, value) pairs in a fixed order.
