@@ -158,6 +158,9 @@ struct SymmetricFactor::Banded {
   // kd ≤ 1: diagonal and first off-diagonal (copies for the LU fallback: dl, d, du, du2).
   std::vector<double> diag, off, lu_dl, lu_d, lu_du, lu_du2;
   std::vector<std::size_t> tri_at;  // per pattern entry: i for (i, i), n + i for (i, i + 1)
+  // Every (i, i) and (i, i + 1) in the pattern: sorted by column, the values are then
+  // a_0, e_0, a_1, e_1, …, a_{n−1} and the scatter is a strided copy.
+  bool full_tridiagonal = false;
   // The chunked solve of the LDLᵀ factor (tridiagonal_chunked_solve below), when use_chunks.
   bool use_chunks = false;
   std::size_t chunk = 0;                  // chunk length c (the last chunk takes the rest)
@@ -367,6 +370,7 @@ SymmetricFactor::SymmetricFactor(std::shared_ptr<const SymmetricPattern> pattern
         const auto i = static_cast<std::size_t>(e.row);
         b.tri_at.push_back(e.row == e.col ? i : n + i);
       }
+      b.full_tridiagonal = b.kd == 1 && p.size() == 2 * n - 1;
       b.chol.clear();
       b.lu.clear();
     } else {
@@ -425,18 +429,26 @@ bool SymmetricFactor::factor() noexcept {
 bool SymmetricFactor::factor_tridiagonal() noexcept {
   Banded& b = *banded_;
   const auto n = static_cast<std::size_t>(b.n);
-  std::fill(b.diag.begin(), b.diag.end(), 0.0);
-  std::fill(b.off.begin(), b.off.end(), 0.0);
-  for (std::size_t e = 0; e < values_.size(); ++e) {
-    const std::size_t at = b.tri_at[e];
-    (at < n ? b.diag[at] : b.off[at - n]) = values_[e];
-  }
+  const double* v = values_.data();
   b.use_lu = false;
   if (b.kd == 0) {  // diagonal: solve_in_place divides
-    return std::all_of(b.diag.begin(), b.diag.end(), [](double v) { return v != 0.0; });
+    std::fill(b.diag.begin(), b.diag.end(), 0.0);
+    for (std::size_t e = 0; e < values_.size(); ++e) b.diag[b.tri_at[e]] = v[e];
+    return std::all_of(b.diag.begin(), b.diag.end(), [](double x) { return x != 0.0; });
   }
-  std::copy(b.diag.begin(), b.diag.end(), b.lu_d.begin());  // kept for the fallback
-  std::copy(b.off.begin(), b.off.end(), b.lu_du.begin());
+  // J's diagonal and off-diagonal go to lu_d and lu_du, which the LDLᵀ factorisation reads (its
+  // factor goes to diag and off) and the LU fallback keeps.
+  if (b.full_tridiagonal) {
+    for (std::size_t i = 0; i < n; ++i) b.lu_d[i] = v[2 * i];
+    for (std::size_t i = 0; i + 1 < n; ++i) b.lu_du[i] = v[2 * i + 1];
+  } else {
+    std::fill(b.lu_d.begin(), b.lu_d.end(), 0.0);
+    std::fill(b.lu_du.begin(), b.lu_du.end(), 0.0);
+    for (std::size_t e = 0; e < values_.size(); ++e) {
+      const std::size_t at = b.tri_at[e];
+      (at < n ? b.lu_d[at] : b.lu_du[at - n]) = v[e];
+    }
+  }
   b.use_chunks = false;
   if (tridiagonal_ldlt(n, b.lu_d.data(), b.lu_du.data(), b.diag.data(), b.off.data())) {
     prepare_chunked_solve(b);
