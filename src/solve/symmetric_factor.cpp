@@ -127,13 +127,13 @@ LinearSolver choose_factorization(const SymmetricPattern& pattern) {
 // (kd + i − j) + j·ldab for j − kd ≤ i ≤ j. LU (dgbtrf, kl = ku = kd): ldab = 3kd + 1 (kd extra
 // rows for the fill of row interchanges), A(i, j) at (2kd + i − j) + j·ldab for |i − j| ≤ kd.
 // Bandwidths 0 and 1 have their own routines: a diagonal is divided by, and a tridiagonal matrix
-// goes to LAPACK's dpttrf/dpttrs (LDLᵀ, positive definite) or dgttrf/dgttrs (LU with pivoting),
-// which are plain loops — the general band routines call a level-2 BLAS kernel per column, and for
-// a chain of 1000 masses that made the factorisation 22 µs instead of a few.
-// The solve with the tridiagonal LDLᵀ factor (L unit lower bidiagonal with L(i+1, i) = e_i) is
-// two recurrences, y_i = b_i − e_{i−1} y_{i−1} forward and z_i = y_i/d_i − e_i z_{i+1} backward:
-// each element waits for the previous one, so LAPACK's dpttrs runs at the latency of a
-// multiply–add, ≈ 4 µs for d = 1000 — 12–16 % of a step of the fractional chain
+// is factored LDLᵀ by tridiagonal_ldlt (dpttrf's numbers, chunked; positive definite) or by
+// LAPACK's dgttrf/dgttrs (LU with pivoting), which are plain loops — the general band routines call
+// a level-2 BLAS kernel per column, and for a chain of 1000 masses that made the factorisation 22
+// µs instead of a few. The solve with the tridiagonal LDLᵀ factor (L unit lower bidiagonal with
+// L(i+1, i) = e_i) is two recurrences, y_i = b_i − e_{i−1} y_{i−1} forward and z_i = y_i/d_i − e_i
+// z_{i+1} backward: each element waits for the previous one, so LAPACK's dpttrs runs at the latency
+// of a multiply–add, ≈ 4 µs for d = 1000 — 12–16 % of a step of the fractional chain
 // (bench/RESULTS.md). Cut into kChunks chunks, the recurrences run in all chunks at once (kChunks
 // independent chains keep the multiply–add pipes busy), each chunk started from zero; the exact
 // solution is the chunk's local one plus a multiple of the value just before it (forward) or just
@@ -258,31 +258,42 @@ void SymmetricFactor::prepare_chunked_solve(Banded& b) noexcept {
   for (std::size_t i = 0; i + 1 < n; ++i) strong += !(std::abs(e[i]) <= kChunkedMaxCoupling);
   if (strong != 0) return;
   for (std::size_t i = 0; i < n; ++i) b.inverse_diag[i] = 1.0 / b.diag[i];
-  // Forward spikes of chunks 1 … kChunks − 1, backward spikes of chunks 0 … kChunks − 2.
-  for (std::size_t p = 0; p < kChunks; ++p) {
-    const std::size_t lo = chunk_begin(p, c), hi = p + 1 < kChunks ? lo + c : n;
-    std::size_t reach = 0;
-    if (p > 0) {
-      double g = 1.0;
-      for (std::size_t i = lo; i < hi; ++i) {
-        g *= -e[i - 1];
-        if (std::abs(g) < DBL_MIN) break;
-        b.forward[i] = g;
-        reach = i - lo + 1;
-      }
+  // Forward spikes of chunks 1 … kChunks − 1, backward spikes of chunks 0 … kChunks − 2: each a
+  // product recurrence that stops where it underflows (a chain's |e| ≈ 1e−4: ≈ 80 rows). One chunk
+  // after the other they were latency-bound (half of this function's time); run side by side, each
+  // spike with the same products in the same order, so the same numbers.
+  std::array<double, kChunks> g_forward{}, g_backward{};
+  g_forward.fill(1.0);
+  g_backward.fill(1.0);
+  b.forward_reach.fill(0);
+  b.backward_reach.fill(0);
+  double* forward = b.forward.data();
+  double* backward = b.backward.data();
+  const std::size_t last_length = n - chunk_begin(kChunks - 1, c);
+  for (std::size_t t = 0;; ++t) {
+    bool extended = false;  // a spike is still running at t when its reach is t
+    for (std::size_t p = 1; p < kChunks; ++p) {
+      const std::size_t length = p + 1 < kChunks ? c : last_length;
+      if (b.forward_reach[p] != t || t >= length) continue;
+      const std::size_t i = chunk_begin(p, c) + t;
+      const double g = g_forward[p] * -e[i - 1];
+      if (std::abs(g) < DBL_MIN) continue;
+      forward[i] = g;
+      g_forward[p] = g;
+      b.forward_reach[p] = t + 1;
+      extended = true;
     }
-    b.forward_reach[p] = reach;
-    reach = 0;
-    if (p + 1 < kChunks) {
-      double g = 1.0;
-      for (std::size_t i = hi; i-- > lo;) {
-        g *= -e[i];
-        if (std::abs(g) < DBL_MIN) break;
-        b.backward[i] = g;
-        reach = hi - i;
-      }
+    for (std::size_t p = 0; p + 1 < kChunks; ++p) {
+      if (b.backward_reach[p] != t || t >= c) continue;
+      const std::size_t i = chunk_begin(p + 1, c) - 1 - t;
+      const double g = g_backward[p] * -e[i];
+      if (std::abs(g) < DBL_MIN) continue;
+      backward[i] = g;
+      g_backward[p] = g;
+      b.backward_reach[p] = t + 1;
+      extended = true;
     }
-    b.backward_reach[p] = reach;
+    if (!extended) break;
   }
   b.use_chunks = true;
 }

@@ -10,10 +10,10 @@
 //            problems, and every problem whose M or Hessian is only available dense.
 //   kBanded  LAPACK band Cholesky dpbtrf/dpbtrs on the bandwidth b of the pattern, falling back to
 //            band LU with partial pivoting (dgbtrf/dgbtrs) when J is not positive definite (a
-//            locally concave U with a large step); b = 1 uses the tridiagonal dpttrf/dpttrs
-//            (fallback dgttrf/dgttrs), b = 0 divides by the diagonal. O(d·b²) per factorisation,
-//            O(d·b) per solve: O(d) for chains. Allocation-free: LAPACK works in preallocated
-//            storage.
+//            locally concave U with a large step); b = 1 uses a tridiagonal LDLᵀ
+//            (tridiagonal_ldlt: dpttrf's numbers, chunked; fallback dgttrf/dgttrs), b = 0 divides
+//            by the diagonal. O(d·b²) per factorisation, O(d·b) per solve: O(d) for chains.
+//            Allocation-free: LAPACK works in preallocated storage.
 //   kSparse  Eigen::SimplicialLDLT with an approximate-minimum-degree ordering, the symbolic
 //            analysis done once. For patterns whose bandwidth is large but fill is small (2-D
 //            lattices, periodic chains). Eigen's numeric factorisation allocates temporaries
