@@ -96,13 +96,13 @@ TEST(Chain, FactorisationsAgree) {
 
 // The structured paths take simplified Newton steps (J kept from the step's first iterate while the
 // corrections contract by 4×, refactored otherwise); the dense path takes full Newton steps. With
-// large steps and strong quartic springs (h = 0.25, |x| ≈ 1, quartic = 20) the kept J contracts
-// poorly and is refactored within steps: both must still converge, to the same increments within
-// the Newton tolerance, and the banded path needs no more than twice the iterations.
+// large steps and strong quartic springs (h = 0.25, |x| ≈ 0.4, quartic = 200; full Newton takes up
+// to 3 iterations a step) both must converge, to the same increments within the Newton tolerance,
+// and the banded path needs no more than twice the iterations.
 TEST(Chain, SimplifiedNewtonAgreesWithFullNewtonOnLargeSteps) {
   ChainSetup s;
   s.d = 60;
-  s.quartic = 20.0;
+  s.quartic = 200.0;
   s.t_end = 5.0;
   s.steps = 20;
   const InitialValueProblem p = chain_problem(s);
@@ -111,7 +111,7 @@ TEST(Chain, SimplifiedNewtonAgreesWithFullNewtonOnLargeSteps) {
   ASSERT_EQ(banded.linear_solver, "banded");
   const double scale = banded.x.cwiseAbs().maxCoeff();
   EXPECT_LE((dense.x - banded.x).cwiseAbs().maxCoeff(), 1e-11 * scale);
-  EXPECT_GE(dense.max_newton_iterations_per_step, 4u);  // strongly nonlinear steps
+  EXPECT_GE(dense.max_newton_iterations_per_step, 3u);  // strongly nonlinear steps
   EXPECT_LE(banded.newton_iterations, 2 * dense.newton_iterations);
 }
 
