@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cfloat>
 #include <cmath>
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -125,13 +127,13 @@ LinearSolver choose_factorization(const SymmetricPattern& pattern) {
 // (kd + i − j) + j·ldab for j − kd ≤ i ≤ j. LU (dgbtrf, kl = ku = kd): ldab = 3kd + 1 (kd extra
 // rows for the fill of row interchanges), A(i, j) at (2kd + i − j) + j·ldab for |i − j| ≤ kd.
 // Bandwidths 0 and 1 have their own routines: a diagonal is divided by, and a tridiagonal matrix
-// goes to LAPACK's dpttrf/dpttrs (LDLᵀ, positive definite) or dgttrf/dgttrs (LU with pivoting),
-// which are plain loops — the general band routines call a level-2 BLAS kernel per column, and for
-// a chain of 1000 masses that made the factorisation 22 µs instead of a few.
-// The solve with the tridiagonal LDLᵀ factor (L unit lower bidiagonal with L(i+1, i) = e_i) is
-// two recurrences, y_i = b_i − e_{i−1} y_{i−1} forward and z_i = y_i/d_i − e_i z_{i+1} backward:
-// each element waits for the previous one, so LAPACK's dpttrs runs at the latency of a
-// multiply–add, ≈ 4 µs for d = 1000 — 12–16 % of a step of the fractional chain
+// is factored LDLᵀ by tridiagonal_ldlt (dpttrf's numbers, chunked; positive definite) or by
+// LAPACK's dgttrf/dgttrs (LU with pivoting), which are plain loops — the general band routines call
+// a level-2 BLAS kernel per column, and for a chain of 1000 masses that made the factorisation 22
+// µs instead of a few. The solve with the tridiagonal LDLᵀ factor (L unit lower bidiagonal with
+// L(i+1, i) = e_i) is two recurrences, y_i = b_i − e_{i−1} y_{i−1} forward and z_i = y_i/d_i − e_i
+// z_{i+1} backward: each element waits for the previous one, so LAPACK's dpttrs runs at the latency
+// of a multiply–add, ≈ 4 µs for d = 1000 — 12–16 % of a step of the fractional chain
 // (bench/RESULTS.md). Cut into kChunks chunks, the recurrences run in all chunks at once (kChunks
 // independent chains keep the multiply–add pipes busy), each chunk started from zero; the exact
 // solution is the chunk's local one plus a multiple of the value just before it (forward) or just
@@ -156,6 +158,9 @@ struct SymmetricFactor::Banded {
   // kd ≤ 1: diagonal and first off-diagonal (copies for the LU fallback: dl, d, du, du2).
   std::vector<double> diag, off, lu_dl, lu_d, lu_du, lu_du2;
   std::vector<std::size_t> tri_at;  // per pattern entry: i for (i, i), n + i for (i, i + 1)
+  // Every (i, i) and (i, i + 1) in the pattern: sorted by column, the values are then
+  // a_0, e_0, a_1, e_1, …, a_{n−1} and the scatter is a strided copy.
+  bool full_tridiagonal = false;
   // The chunked solve of the LDLᵀ factor (tridiagonal_chunked_solve below), when use_chunks.
   bool use_chunks = false;
   std::size_t chunk = 0;                  // chunk length c (the last chunk takes the rest)
@@ -179,40 +184,116 @@ std::size_t chunk_begin(std::size_t p, std::size_t c) {
 
 }  // namespace
 
+namespace {
+
+// The recurrence of the LDLᵀ factor from row i to hi − 1, given the pivot x = d_i:
+//   d_i = x,  l_i = e_i / d_i,  d_{i+1} = a_{i+1} − l_i e_i,
+// LAPACK's dpttrf's operations in its order (ISO C++ mode keeps the products unfused), so the
+// numbers are dpttrf's bit for bit. With `check`, it stops at the first row whose stored d_i is x
+// already, bit for bit: the rest of the run was computed from that same value.
+void ldlt_run(std::size_t i, std::size_t hi, double x, bool check, std::size_t n, const double* a,
+              const double* e, double* d, double* l) noexcept {
+  for (; i < hi; ++i) {
+    if (check && std::bit_cast<std::uint64_t>(d[i]) == std::bit_cast<std::uint64_t>(x)) return;
+    d[i] = x;
+    if (i + 1 == n) return;
+    l[i] = e[i] / x;
+    x = a[i + 1] - l[i] * e[i];
+  }
+}
+
+}  // namespace
+
+// Each pivot waits for the previous one through a division and a multiply–add (≈ 20 cycles), so
+// LAPACK's dpttrf is latency-bound: ≈ 7 µs for d = 1000, twice per step of the β-FPUT chain.
+// Here the chunks of the solve run side by side, chunk p > 0 started as if e_{s−1} were 0
+// (d_s = a_s): kChunks independent recurrences keep the divider busy. Then, chunk by chunk from
+// the second, the recurrence is re-run from the true pivot d_s = a_s − l_{s−1} e_{s−1} until it
+// meets the stored value bit for bit. The map d_{i−1} ↦ d_i has derivative l_{i−1}², so a wrong
+// start is forgotten after a few rows for the chains' weak coupling (|l| ≈ h²k/4m); with strong
+// coupling the re-run is longer, at worst a whole sequential pass: the result is exact in any case.
+bool tridiagonal_ldlt(std::size_t n, const double* a, const double* e, double* d,
+                      double* l) noexcept {
+  if (n == 0) return true;
+  const std::size_t c = n / kChunks;
+  if (c < 2) {
+    ldlt_run(0, n, a[0], false, n, a, e, d, l);
+  } else {
+    std::array<double, kChunks> pivot{};
+    for (std::size_t p = 0; p < kChunks; ++p) pivot[p] = a[chunk_begin(p, c)];
+    for (std::size_t t = 0; t + 1 < c; ++t) {
+      for (std::size_t p = 0; p < kChunks; ++p) {
+        const std::size_t i = chunk_begin(p, c) + t;
+        d[i] = pivot[p];
+        l[i] = e[i] / pivot[p];
+        pivot[p] = a[i + 1] - l[i] * e[i];
+      }
+    }
+    for (std::size_t p = 0; p + 1 < kChunks; ++p) {
+      const std::size_t i = chunk_begin(p + 1, c) - 1;
+      d[i] = pivot[p];
+      l[i] = e[i] / pivot[p];
+    }
+    // The last chunk takes the rest of the rows: one run to n.
+    const std::size_t last = chunk_begin(kChunks - 1, c);
+    ldlt_run(last + c - 1, n, pivot[kChunks - 1], false, n, a, e, d, l);
+    for (std::size_t p = 1; p < kChunks; ++p) {
+      const std::size_t s = chunk_begin(p, c), hi = p + 1 < kChunks ? s + c : n;
+      ldlt_run(s, hi, a[s] - l[s - 1] * e[s - 1], true, n, a, e, d, l);
+    }
+  }
+  // dpttrf stops at the first d_i ≤ 0 (NaN passes, as there); a count, so that the test vectorises.
+  std::size_t non_positive = 0;
+  for (std::size_t i = 0; i < n; ++i) non_positive += d[i] <= 0.0;
+  return non_positive == 0;
+}
+
 void SymmetricFactor::prepare_chunked_solve(Banded& b) noexcept {
   const auto n = static_cast<std::size_t>(b.n);
   const std::size_t c = b.chunk;
   if (c == 0) return;
   const double* e = b.off.data();
-  for (std::size_t i = 0; i + 1 < n; ++i) {
-    if (!(std::abs(e[i]) <= kChunkedMaxCoupling)) return;  // NaN included: LAPACK's solve
-  }
+  // A count rather than an early exit, so that the test vectorises (NaN counts: LAPACK's solve).
+  std::size_t strong = 0;
+  for (std::size_t i = 0; i + 1 < n; ++i) strong += !(std::abs(e[i]) <= kChunkedMaxCoupling);
+  if (strong != 0) return;
   for (std::size_t i = 0; i < n; ++i) b.inverse_diag[i] = 1.0 / b.diag[i];
-  // Forward spikes of chunks 1 … kChunks − 1, backward spikes of chunks 0 … kChunks − 2.
-  for (std::size_t p = 0; p < kChunks; ++p) {
-    const std::size_t lo = chunk_begin(p, c), hi = p + 1 < kChunks ? lo + c : n;
-    std::size_t reach = 0;
-    if (p > 0) {
-      double g = 1.0;
-      for (std::size_t i = lo; i < hi; ++i) {
-        g *= -e[i - 1];
-        if (std::abs(g) < DBL_MIN) break;
-        b.forward[i] = g;
-        reach = i - lo + 1;
-      }
+  // Forward spikes of chunks 1 … kChunks − 1, backward spikes of chunks 0 … kChunks − 2: each a
+  // product recurrence that stops where it underflows (a chain's |e| ≈ 1e−4: ≈ 80 rows). One chunk
+  // after the other they were latency-bound (half of this function's time); run side by side, each
+  // spike with the same products in the same order, so the same numbers.
+  std::array<double, kChunks> g_forward{}, g_backward{};
+  g_forward.fill(1.0);
+  g_backward.fill(1.0);
+  b.forward_reach.fill(0);
+  b.backward_reach.fill(0);
+  double* forward = b.forward.data();
+  double* backward = b.backward.data();
+  const std::size_t last_length = n - chunk_begin(kChunks - 1, c);
+  for (std::size_t t = 0;; ++t) {
+    bool extended = false;  // a spike is still running at t when its reach is t
+    for (std::size_t p = 1; p < kChunks; ++p) {
+      const std::size_t length = p + 1 < kChunks ? c : last_length;
+      if (b.forward_reach[p] != t || t >= length) continue;
+      const std::size_t i = chunk_begin(p, c) + t;
+      const double g = g_forward[p] * -e[i - 1];
+      if (std::abs(g) < DBL_MIN) continue;
+      forward[i] = g;
+      g_forward[p] = g;
+      b.forward_reach[p] = t + 1;
+      extended = true;
     }
-    b.forward_reach[p] = reach;
-    reach = 0;
-    if (p + 1 < kChunks) {
-      double g = 1.0;
-      for (std::size_t i = hi; i-- > lo;) {
-        g *= -e[i];
-        if (std::abs(g) < DBL_MIN) break;
-        b.backward[i] = g;
-        reach = hi - i;
-      }
+    for (std::size_t p = 0; p + 1 < kChunks; ++p) {
+      if (b.backward_reach[p] != t || t >= c) continue;
+      const std::size_t i = chunk_begin(p + 1, c) - 1 - t;
+      const double g = g_backward[p] * -e[i];
+      if (std::abs(g) < DBL_MIN) continue;
+      backward[i] = g;
+      g_backward[p] = g;
+      b.backward_reach[p] = t + 1;
+      extended = true;
     }
-    b.backward_reach[p] = reach;
+    if (!extended) break;
   }
   b.use_chunks = true;
 }
@@ -300,6 +381,7 @@ SymmetricFactor::SymmetricFactor(std::shared_ptr<const SymmetricPattern> pattern
         const auto i = static_cast<std::size_t>(e.row);
         b.tri_at.push_back(e.row == e.col ? i : n + i);
       }
+      b.full_tridiagonal = b.kd == 1 && p.size() == 2 * n - 1;
       b.chol.clear();
       b.lu.clear();
     } else {
@@ -358,20 +440,28 @@ bool SymmetricFactor::factor() noexcept {
 bool SymmetricFactor::factor_tridiagonal() noexcept {
   Banded& b = *banded_;
   const auto n = static_cast<std::size_t>(b.n);
-  std::fill(b.diag.begin(), b.diag.end(), 0.0);
-  std::fill(b.off.begin(), b.off.end(), 0.0);
-  for (std::size_t e = 0; e < values_.size(); ++e) {
-    const std::size_t at = b.tri_at[e];
-    (at < n ? b.diag[at] : b.off[at - n]) = values_[e];
-  }
+  const double* v = values_.data();
   b.use_lu = false;
   if (b.kd == 0) {  // diagonal: solve_in_place divides
-    return std::all_of(b.diag.begin(), b.diag.end(), [](double v) { return v != 0.0; });
+    std::fill(b.diag.begin(), b.diag.end(), 0.0);
+    for (std::size_t e = 0; e < values_.size(); ++e) b.diag[b.tri_at[e]] = v[e];
+    return std::all_of(b.diag.begin(), b.diag.end(), [](double x) { return x != 0.0; });
   }
-  std::copy(b.diag.begin(), b.diag.end(), b.lu_d.begin());  // kept for the fallback
-  std::copy(b.off.begin(), b.off.end(), b.lu_du.begin());
+  // J's diagonal and off-diagonal go to lu_d and lu_du, which the LDLᵀ factorisation reads (its
+  // factor goes to diag and off) and the LU fallback keeps.
+  if (b.full_tridiagonal) {
+    for (std::size_t i = 0; i < n; ++i) b.lu_d[i] = v[2 * i];
+    for (std::size_t i = 0; i + 1 < n; ++i) b.lu_du[i] = v[2 * i + 1];
+  } else {
+    std::fill(b.lu_d.begin(), b.lu_d.end(), 0.0);
+    std::fill(b.lu_du.begin(), b.lu_du.end(), 0.0);
+    for (std::size_t e = 0; e < values_.size(); ++e) {
+      const std::size_t at = b.tri_at[e];
+      (at < n ? b.lu_d[at] : b.lu_du[at - n]) = v[e];
+    }
+  }
   b.use_chunks = false;
-  if (LAPACKE_dpttrf_work(b.n, b.diag.data(), b.off.data()) == 0) {
+  if (tridiagonal_ldlt(n, b.lu_d.data(), b.lu_du.data(), b.diag.data(), b.off.data())) {
     prepare_chunked_solve(b);
     return true;
   }

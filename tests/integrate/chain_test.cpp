@@ -94,6 +94,27 @@ TEST(Chain, FactorisationsAgree) {
   EXPECT_GE(banded.max_newton_iterations_per_step, 2u);  // nonlinear: Newton really iterates
 }
 
+// The structured paths take simplified Newton steps (J kept from the step's first iterate while the
+// corrections contract by 4×, refactored otherwise); the dense path takes full Newton steps. With
+// large steps and strong quartic springs (h = 0.25, |x| ≈ 0.4, quartic = 200; full Newton takes up
+// to 3 iterations a step) both must converge, to the same increments within the Newton tolerance,
+// and the banded path needs no more than twice the iterations.
+TEST(Chain, SimplifiedNewtonAgreesWithFullNewtonOnLargeSteps) {
+  ChainSetup s;
+  s.d = 60;
+  s.quartic = 200.0;
+  s.t_end = 5.0;
+  s.steps = 20;
+  const InitialValueProblem p = chain_problem(s);
+  const Solution banded = run(p, LinearSolver::kBanded);
+  const Solution dense = run(p, LinearSolver::kDense);
+  ASSERT_EQ(banded.linear_solver, "banded");
+  const double scale = banded.x.cwiseAbs().maxCoeff();
+  EXPECT_LE((dense.x - banded.x).cwiseAbs().maxCoeff(), 1e-11 * scale);
+  EXPECT_GE(dense.max_newton_iterations_per_step, 3u);  // strongly nonlinear steps
+  EXPECT_LE(banded.newton_iterations, 2 * dense.newton_iterations);
+}
+
 TEST(Chain, PeriodicChainUsesSparseFactorisation) {
   ChainSetup s;
   s.d = 2 * kMaxAutoBandwidth + 10;  // bandwidth d − 1 from the corners

@@ -3,7 +3,10 @@
 #include "fracvi/solve/symmetric_factor.hpp"
 
 #include <gtest/gtest.h>
+#include <lapacke.h>
 
+#include <bit>
+#include <cstdint>
 #include <memory>
 #include <random>
 
@@ -86,6 +89,81 @@ TEST(SymmetricFactor, ChunkedTridiagonalSolveMatchesDenseLu) {
       // Eigenvalues in [1, 1 + 4·coupling] (Gershgorin): a few ulps × the condition number.
       EXPECT_LE(solve_error(*f.factor, a, 9u), 1e-14 * (1.0 + 4.0 * coupling))
           << "d " << d << ", coupling " << coupling;
+    }
+  }
+}
+
+// The chunked LDLᵀ factorisation (tridiagonal_ldlt) gives LAPACK's dpttrf's numbers bit for bit,
+// and its factor solves the system as a dense LU does: random symmetric positive definite
+// tridiagonal matrices of sizes below, at and above the chunked sizes (not multiples of 16, tiny),
+// with the chain's weak coupling, moderate coupling, diagonally dominant strong coupling, and the
+// 1-D Laplacian with a small shift (|l| → 1: a wrong chunk start is forgotten slowly, the re-runs
+// are long).
+TEST(SymmetricFactor, ChunkedTridiagonalLdltIsDpttrf) {
+  for (const std::size_t n :
+       {1u, 2u, 3u, 15u, 16u, 17u, 31u, 32u, 33u, 47u, 100u, 511u, 512u, 1000u, 1023u, 2049u}) {
+    for (const double coupling : {2.5e-5, 0.3, 10.0, -1.0}) {  // −1: the shifted Laplacian
+      std::mt19937 rng(static_cast<unsigned>(n * 7 + 1));
+      std::uniform_real_distribution<double> u(0.5, 1.0);
+      std::vector<double> a(n), e(n, 0.0);
+      for (std::size_t i = 0; i + 1 < n; ++i) e[i] = coupling < 0.0 ? -1.0 : -coupling * u(rng);
+      for (std::size_t i = 0; i < n; ++i) {
+        a[i] = coupling < 0.0 ? 2.0 + 1e-3 : 1.0 + 2.0 * coupling * u(rng) + u(rng);
+      }
+      if (coupling > 0.0) {  // diagonally dominant: positive definite
+        for (std::size_t i = 0; i < n; ++i) {
+          a[i] += std::abs(i > 0 ? e[i - 1] : 0.0) + std::abs(i + 1 < n ? e[i] : 0.0);
+        }
+      }
+      std::vector<double> d(n), l(n, 0.0), lapack_d = a, lapack_l = e;
+      ASSERT_TRUE(tridiagonal_ldlt(n, a.data(), e.data(), d.data(), l.data()));
+      ASSERT_EQ(LAPACKE_dpttrf_work(static_cast<lapack_int>(n), lapack_d.data(), lapack_l.data()),
+                0);
+      for (std::size_t i = 0; i < n; ++i) {
+        ASSERT_EQ(std::bit_cast<std::uint64_t>(d[i]), std::bit_cast<std::uint64_t>(lapack_d[i]))
+            << "n " << n << ", coupling " << coupling << ", d_" << i;
+        if (i + 1 < n) {
+          ASSERT_EQ(std::bit_cast<std::uint64_t>(l[i]), std::bit_cast<std::uint64_t>(lapack_l[i]))
+              << "n " << n << ", coupling " << coupling << ", l_" << i;
+        }
+      }
+      // L D Lᵀ x = b by the two recurrences, against the dense LU of A.
+      const auto m = static_cast<Eigen::Index>(n);
+      Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(m, m);
+      for (Eigen::Index i = 0; i < m; ++i) dense(i, i) = a[static_cast<std::size_t>(i)];
+      for (Eigen::Index i = 0; i + 1 < m; ++i) {
+        dense(i, i + 1) = dense(i + 1, i) = e[static_cast<std::size_t>(i)];
+      }
+      std::normal_distribution<double> normal;
+      Eigen::VectorXd rhs(m);
+      for (auto& r : rhs) r = normal(rng);
+      Eigen::VectorXd x = rhs;
+      for (Eigen::Index i = 1; i < m; ++i) x(i) -= l[static_cast<std::size_t>(i - 1)] * x(i - 1);
+      for (Eigen::Index i = 0; i < m; ++i) x(i) /= d[static_cast<std::size_t>(i)];
+      for (Eigen::Index i = m - 1; i-- > 0;) x(i) -= l[static_cast<std::size_t>(i)] * x(i + 1);
+      const Eigen::VectorXd reference = dense.partialPivLu().solve(rhs);
+      // A few ulps × the condition number: ≤ 1 + 4·coupling (Gershgorin, ≥ 1 the smallest
+      // eigenvalue) for the dominant ones, ≈ 4/(1e−3 + (π/(n+1))²) ≤ 4000 for the Laplacian.
+      const double condition = coupling < 0.0 ? 4e3 : 1.0 + 4.0 * coupling;
+      EXPECT_LE((x - reference).cwiseAbs().maxCoeff() / reference.cwiseAbs().maxCoeff(),
+                1e-14 * condition)
+          << "n " << n << ", coupling " << coupling;
+    }
+  }
+}
+
+// A pivot that is not positive is reported as by dpttrf wherever it is: in the first chunk, in a
+// later chunk (whose speculative start, a_s, is positive) and in the last row.
+TEST(SymmetricFactor, ChunkedTridiagonalLdltReportsNonPositivePivot) {
+  for (const std::size_t n : {3u, 40u, 1000u}) {
+    for (const std::size_t bad : {std::size_t{1}, n / 2 + 1, n - 1}) {
+      std::vector<double> a(n, 3.0), e(n, -1.0), d(n), l(n);
+      a[bad] = 0.2;  // d_bad = 0.2 − 1/d_{bad−1} < 0 (d_{bad−1} ≈ 2.6)
+      EXPECT_FALSE(tridiagonal_ldlt(n, a.data(), e.data(), d.data(), l.data()))
+          << "n " << n << ", row " << bad;
+      std::vector<double> lapack_d = a, lapack_l = e;
+      EXPECT_EQ(LAPACKE_dpttrf_work(static_cast<lapack_int>(n), lapack_d.data(), lapack_l.data()),
+                static_cast<lapack_int>(bad + 1));
     }
   }
 }

@@ -10,10 +10,10 @@
 //            problems, and every problem whose M or Hessian is only available dense.
 //   kBanded  LAPACK band Cholesky dpbtrf/dpbtrs on the bandwidth b of the pattern, falling back to
 //            band LU with partial pivoting (dgbtrf/dgbtrs) when J is not positive definite (a
-//            locally concave U with a large step); b = 1 uses the tridiagonal dpttrf/dpttrs
-//            (fallback dgttrf/dgttrs), b = 0 divides by the diagonal. O(d·b²) per factorisation,
-//            O(d·b) per solve: O(d) for chains. Allocation-free: LAPACK works in preallocated
-//            storage.
+//            locally concave U with a large step); b = 1 uses a tridiagonal LDLᵀ
+//            (tridiagonal_ldlt: dpttrf's numbers, chunked; fallback dgttrf/dgttrs), b = 0 divides
+//            by the diagonal. O(d·b²) per factorisation, O(d·b) per solve: O(d) for chains.
+//            Allocation-free: LAPACK works in preallocated storage.
 //   kSparse  Eigen::SimplicialLDLT with an approximate-minimum-degree ordering, the symbolic
 //            analysis done once. For patterns whose bandwidth is large but fill is small (2-D
 //            lattices, periodic chains). Eigen's numeric factorisation allocates temporaries
@@ -120,6 +120,14 @@ class SymmetricFactor {
   std::unique_ptr<Banded> banded_;
   std::unique_ptr<Sparse> sparse_;
 };
+
+/// The LDLᵀ factorisation of the symmetric tridiagonal matrix with diagonal a[0, n) and
+/// off-diagonal e[0, n − 1): the pivots d[0, n) and L's off-diagonal l[i] = e[i]/d[i] for i < n − 1
+/// (l[n − 1] untouched), the numbers of LAPACK's dpttrf bit for bit, computed in chunks side by
+/// side (symmetric_factor.cpp). Returns false if some d_i ≤ 0 (dpttrf's info > 0: J is not positive
+/// definite, and d, l are not its factor). a and e must not overlap d and l. No allocation.
+bool tridiagonal_ldlt(std::size_t n, const double* a, const double* e, double* d,
+                      double* l) noexcept;
 
 /// Where the stored entries of a ModelMatrix land in a pattern that contains them (its upper
 /// triangle; lower entries map onto their mirror and are skipped, so a symmetric A is counted
