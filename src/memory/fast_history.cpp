@@ -132,7 +132,8 @@ void push_block(const FastHistoryBlock& blk) {
 // per recursion: ≈ 30 % of a d = 1 step, bench/RESULTS.md), so each row runs along its K
 // recursions instead (the four new Y_j of a group in one vector). The additions keep push_block's
 // order exactly — groups of four summed pairwise, then into the tail in ascending j; the window
-// likewise onto the tail — so the results are bit for bit those of push_block. That order matters:
+// likewise onto the tail — so a row's sum is bit for bit that of the same row inside a larger
+// system (tested for K = 29 … 63). That order matters:
 // the window's terms cancel from O(|x̃|) to O(h^β |x̃|), and eight interleaved partial sums
 // measured 4× the round-off of the sum (mean |Ŝ − S| 9e-17 against 2.3e-17, d = 1, N = 10^5,
 // ε = 1e-13, against the exact sum in long double).
