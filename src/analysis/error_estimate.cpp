@@ -1,32 +1,63 @@
 #include "fracvi/analysis/error_estimate.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <future>
 #include <limits>
+#include <memory>
 #include <optional>
+#include <span>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "fracvi/core/error.hpp"
 #include "fracvi/integrate/integrator.hpp"
 
 namespace fracvi {
+namespace internal {
+
+// What the companion runs of one estimate produced: they depend on the main run only through the
+// steps it stores, so they can run before it ends (ConcurrentErrorEstimate). Which runs exist
+// follows estimate_error's rules; combine() turns them into the estimate.
+struct CompanionRuns {
+  std::optional<RowMatrixXd> tight;     // adaptive scheme: tolerances / 1000
+  std::optional<RowMatrixXd> half;      // N/2
+  std::optional<RowMatrixXd> quarter;   // N/4 (only after N/2)
+  std::optional<RowMatrixXd> twice;     // 2N (only without N/2)
+  std::optional<RowMatrixXd> layer[3];  // the initial layer with h, h/2, h/4 (only after N/2)
+  std::string why, why_quarter, why_layer;
+  bool layer_checked = false;  // the three layer runs succeeded
+  double wall_seconds = 0.0;
+};
+
+}  // namespace internal
+
 namespace {
+
+using internal::CompanionRuns;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // The options of a companion run with `steps` steps: no mirror run, no diagnostics, no stored rows
 // (the observer takes them), no output times or events (the grid rows are compared; no stop at a
-// terminal event).
-IntegratorOptions companion_options(const IntegratorOptions& options, std::size_t steps) {
+// terminal event). `cancel` (concurrent companions only): the main run failed or threw, stop.
+IntegratorOptions companion_options(const IntegratorOptions& options, std::size_t steps,
+                                    const std::shared_ptr<std::atomic<bool>>& cancel) {
   IntegratorOptions o = options;
   o.mirror = false;
   o.diagnostics = false;
   o.save_every = steps;
   o.output_times.clear();
   o.events.clear();
+  if (cancel) {
+    o.interrupt = [cancel, hook = options.interrupt] {
+      return cancel->load(std::memory_order_relaxed) || (hook && hook());
+    };
+  }
   return o;
 }
 
@@ -35,20 +66,23 @@ IntegratorOptions companion_options(const IntegratorOptions& options, std::size_
 // companion's grid (k · steps / N whole), NaN otherwise. nullopt when the run is refused or fails
 // (`why` says which).
 std::optional<RowMatrixXd> companion(const InitialValueProblem& problem, const Method& method,
-                                     const IntegratorOptions& options, const Solution& solution,
-                                     std::size_t steps, std::string& why) {
+                                     const IntegratorOptions& options,
+                                     std::span<const std::size_t> stored, std::size_t steps,
+                                     const std::shared_ptr<std::atomic<bool>>& cancel,
+                                     std::string& why) {
   InitialValueProblem p = problem;
   p.steps = steps;
-  const IntegratorOptions o = companion_options(options, steps);
+  const IntegratorOptions o = companion_options(options, steps, cancel);
   const std::size_t n = problem.steps;
   // Companion step j ↔ main step j · n / steps; main step k ↔ stored row (k / save_every, or
   // the last row for k = n).
   std::vector<Eigen::Index> row_of(steps + 1, -1);
-  for (std::size_t i = 0; i < solution.step.size(); ++i) {
-    const std::size_t k = solution.step[i];
+  for (std::size_t i = 0; i < stored.size(); ++i) {
+    const std::size_t k = stored[i];
     if ((k * steps) % n == 0) row_of[k * steps / n] = static_cast<Eigen::Index>(i);
   }
-  RowMatrixXd x = RowMatrixXd::Constant(solution.x.rows(), solution.x.cols(), kNaN);
+  RowMatrixXd x = RowMatrixXd::Constant(static_cast<Eigen::Index>(stored.size()),
+                                        problem.model.dimension(), kNaN);
   try {
     Integrator integrator(std::move(p), method, o);
     const Status status = integrator.run([&](const StepView& view) {
@@ -72,11 +106,13 @@ std::optional<RowMatrixXd> companion(const InitialValueProblem& problem, const M
 // first steps of the main run's grid refined `refine` times, at the cost of m·refine steps.
 std::optional<RowMatrixXd> first_steps(const InitialValueProblem& problem, const Method& method,
                                        const IntegratorOptions& options, std::size_t m,
-                                       std::size_t refine, std::string& why) {
+                                       std::size_t refine,
+                                       const std::shared_ptr<std::atomic<bool>>& cancel,
+                                       std::string& why) {
   InitialValueProblem p = problem;
   p.steps = m * refine;
   p.t_end = problem.time(static_cast<double>(m));
-  const IntegratorOptions o = companion_options(options, p.steps);
+  const IntegratorOptions o = companion_options(options, p.steps, cancel);
   RowMatrixXd x(static_cast<Eigen::Index>(m + 1), problem.model.dimension());
   try {
     Integrator integrator(std::move(p), method, o);
@@ -122,21 +158,57 @@ double max_difference(const RowMatrixXd& a, const RowMatrixXd& b, const RowMatri
 // [0.5, declared + 2]. The estimate is the larger of the two; the note says when the layer's is.
 constexpr std::size_t kLayer = 16;
 
-void estimate_initial_layer(const InitialValueProblem& problem, const Method& method,
-                            const IntegratorOptions& options, int declared, ErrorEstimate& e) {
-  const std::size_t m = std::min(kLayer, problem.steps);
-  std::string why;
-  std::optional<RowMatrixXd> runs[3];
-  for (std::size_t i = 0; i < 3; ++i) {
-    runs[i] = first_steps(problem, method, options, m, std::size_t{1} << i, why);
-    if (!runs[i]) {
-      e.note += (e.note.empty() ? "" : "; ") + why + ": the initial layer is not checked";
-      return;
+// The companion runs of an estimate of a run of `problem` that stores the steps `stored`, in the
+// order estimate_error has always made them (each run only where the one before allows it).
+CompanionRuns run_companions(const InitialValueProblem& problem, const Method& method,
+                             const IntegratorOptions& options, std::span<const std::size_t> stored,
+                             const std::shared_ptr<std::atomic<bool>>& cancel) {
+  const auto start = std::chrono::steady_clock::now();
+  CompanionRuns r;
+  const std::size_t n = problem.steps;
+  if (method.info().adaptive) {
+    // An adaptive scheme's error follows its tolerances, not h: the companion is the same grid
+    // with tolerances 1000 times tighter (its error is then far below the run's; measured slope
+    // of error against tolerance ≈ 1, docs/verification.md).
+    constexpr double kTighter = 1e-3;
+    IntegratorOptions tight = options;
+    tight.abs_tolerance *= kTighter;
+    tight.rel_tolerance *= kTighter;
+    r.tight = companion(problem, method, tight, stored, n, cancel, r.why);
+  } else {
+    if (n % 2 == 0 && n >= 4)
+      r.half = companion(problem, method, options, stored, n / 2, cancel, r.why);
+    if (r.half) {
+      if (n % 4 == 0 && n >= 8) {
+        r.quarter = companion(problem, method, options, stored, n / 4, cancel, r.why_quarter);
+      }
+      const std::size_t m = std::min(kLayer, n);
+      r.layer_checked = true;
+      for (std::size_t i = 0; i < 3 && r.layer_checked; ++i) {
+        r.layer[i] =
+            first_steps(problem, method, options, m, std::size_t{1} << i, cancel, r.why_layer);
+        r.layer_checked = r.layer[i].has_value();
+      }
+    } else {
+      // N odd or too small, or the N/2 run refused or failed: a finer companion with 2N steps.
+      std::string why_twice;
+      r.twice = companion(problem, method, options, stored, 2 * n, cancel, why_twice);
+      if (!r.twice) r.why = (r.why.empty() ? "" : r.why + "; ") + why_twice;
     }
   }
+  r.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+
+// The initial layer from its three runs (see kLayer).
+void estimate_initial_layer(const CompanionRuns& r, std::size_t m, int declared, ErrorEstimate& e) {
+  if (!r.layer_checked) {
+    e.note += (e.note.empty() ? "" : "; ") + r.why_layer + ": the initial layer is not checked";
+    return;
+  }
   std::size_t rows = 0;
-  const double d1 = max_difference(*runs[0], *runs[1], nullptr, rows);
-  const double d2 = max_difference(*runs[1], *runs[2], nullptr, rows);
+  const double d1 = max_difference(*r.layer[0], *r.layer[1], nullptr, rows);
+  const double d2 = max_difference(*r.layer[1], *r.layer[2], nullptr, rows);
   if (!(d1 > 0.0)) return;
   const double q = d2 > 0.0 ? std::clamp(std::log2(d1 / d2), 0.5, declared + 2.0) : declared + 2.0;
   const double layer = d1 * std::pow(2.0, q) / (std::pow(2.0, q) - 1.0);
@@ -150,69 +222,34 @@ void estimate_initial_layer(const InitialValueProblem& problem, const Method& me
   e.value = layer;
 }
 
-}  // namespace
-
-void estimate_error(const InitialValueProblem& problem, const Method& method,
-                    const IntegratorOptions& options, Solution& solution) {
-  ErrorEstimate& e = solution.error_estimate;
-  e = ErrorEstimate{};
-  if (options.error_estimate == ErrorEstimateKind::kNone) {
-    e.note = "not requested (method.error_estimate = \"none\")";
-    return;
-  }
-  if (solution.status == Status::kEvent) {
-    e.note = "the run stopped at a terminal event (the companion runs compare whole runs)";
-    return;
-  }
-  if (!solution.ok()) {
-    e.note = "the run did not succeed";
-    return;
-  }
-  const auto start = std::chrono::steady_clock::now();
+// The estimate of `solution` from its companion runs.
+void combine(const InitialValueProblem& problem, const Method& method, const CompanionRuns& r,
+             const Solution& solution, ErrorEstimate& e) {
   const std::size_t n = problem.steps;
+  const RowMatrixXd& x = solution.x;
+  e.wall_seconds = r.wall_seconds;
   if (method.info().adaptive) {
-    // An adaptive scheme's error follows its tolerances, not h: the companion is the same grid
-    // with tolerances 1000 times tighter (its error is then far below the run's; measured slope
-    // of error against tolerance ≈ 1, docs/verification.md).
-    constexpr double kTighter = 1e-3;
-    IntegratorOptions tight = options;
-    tight.abs_tolerance *= kTighter;
-    tight.rel_tolerance *= kTighter;
-    std::string why;
-    const std::optional<RowMatrixXd> reference =
-        companion(problem, method, tight, solution, n, why);
-    if (!reference) {
-      e.note = why;
+    if (!r.tight) {
+      e.note = r.why;
     } else {
       std::size_t rows = 0;
-      e.value = max_difference(solution.x, *reference, nullptr, rows);
+      e.value = max_difference(x, *r.tight, nullptr, rows);
       e.nodes = rows;
       e.method = "tolerances / 1000 (adaptive scheme)";
     }
-    e.wall_seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return;
   }
   const int declared = method.declared_order(problem.model);
-  const RowMatrixXd& x = solution.x;
-  std::string why;
-  std::optional<RowMatrixXd> half;
-  if (n % 2 == 0 && n >= 4) half = companion(problem, method, options, solution, n / 2, why);
-  if (half) {
+  if (r.half) {
     std::size_t rows = 0;
-    const double d1 = max_difference(x, *half, nullptr, rows);
+    const double d1 = max_difference(x, *r.half, nullptr, rows);
     e.nodes = rows;
     e.order = declared;
     e.method = "richardson (N/2)";
-    std::optional<RowMatrixXd> quarter;
-    std::string why_quarter;
-    if (n % 4 == 0 && n >= 8) {
-      quarter = companion(problem, method, options, solution, n / 4, why_quarter);
-    }
-    if (quarter) {
+    if (r.quarter) {
       std::size_t shared = 0;
-      const double d1_shared = max_difference(x, *half, &*quarter, shared);
-      const double d2 = max_difference(*half, *quarter, nullptr, shared);
+      const double d1_shared = max_difference(x, *r.half, &*r.quarter, shared);
+      const double d2 = max_difference(*r.half, *r.quarter, nullptr, shared);
       e.method = "richardson (N/2, N/4)";
       if (d1_shared > 0.0 && d2 > 0.0) {
         e.observed_order = std::log2(d2 / d1_shared);
@@ -223,34 +260,102 @@ void estimate_error(const InitialValueProblem& problem, const Method& method,
                    "caps the order; the estimate uses the observed order";
         }
       }
-    } else if (!why_quarter.empty()) {
-      e.note = why_quarter + "; the declared order is used";
+    } else if (!r.why_quarter.empty()) {
+      e.note = r.why_quarter + "; the declared order is used";
     } else {
       e.note = "N is not a multiple of 4: the declared order is used";
     }
     e.value = d1 / (std::pow(2.0, e.order) - 1.0);
-    estimate_initial_layer(problem, method, options, declared, e);
+    estimate_initial_layer(r, std::min(kLayer, n), declared, e);
+  } else if (!r.twice) {
+    e.note = r.why;
   } else {
-    // N odd or too small, or the N/2 run refused or failed: a finer companion with 2N steps.
-    const std::string why_half = why;
-    why.clear();
-    const std::optional<RowMatrixXd> twice =
-        companion(problem, method, options, solution, 2 * n, why);
-    if (!twice) {
-      e.note = (why_half.empty() ? "" : why_half + "; ") + why;
-    } else {
-      std::size_t rows = 0;
-      const double d = max_difference(x, *twice, nullptr, rows);
-      e.nodes = rows;
-      e.order = declared;
-      const double r = std::pow(2.0, e.order);
-      e.value = d * r / (r - 1.0);
-      e.method = "richardson (2N)";
-      e.note = why_half.empty() ? "N is odd: a companion run with 2N steps, the declared order"
-                                : why_half + "; a companion run with 2N steps instead";
-    }
+    std::size_t rows = 0;
+    const double d = max_difference(x, *r.twice, nullptr, rows);
+    e.nodes = rows;
+    e.order = declared;
+    const double q = std::pow(2.0, e.order);
+    e.value = d * q / (q - 1.0);
+    e.method = "richardson (2N)";
+    e.note = r.why.empty() ? "N is odd: a companion run with 2N steps, the declared order"
+                           : r.why + "; a companion run with 2N steps instead";
   }
-  e.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// The note when the estimate is not made at all; empty when it is.
+std::string no_estimate(const IntegratorOptions& options, const Solution& solution) {
+  if (options.error_estimate == ErrorEstimateKind::kNone) {
+    return "not requested (method.error_estimate = \"none\")";
+  }
+  if (solution.status == Status::kEvent) {
+    return "the run stopped at a terminal event (the companion runs compare whole runs)";
+  }
+  if (!solution.ok()) return "the run did not succeed";
+  return {};
+}
+
+}  // namespace
+
+void estimate_error(const InitialValueProblem& problem, const Method& method,
+                    const IntegratorOptions& options, Solution& solution) {
+  ErrorEstimate& e = solution.error_estimate;
+  e = ErrorEstimate{};
+  e.note = no_estimate(options, solution);
+  if (!e.note.empty()) return;
+  combine(problem, method, run_companions(problem, method, options, solution.step, nullptr),
+          solution, e);
+}
+
+bool ConcurrentErrorEstimate::applies(const InitialValueProblem& problem,
+                                      const IntegratorOptions& options) {
+  return options.error_estimate != ErrorEstimateKind::kNone && options.threads != 1 &&
+         options.output_times.empty() && options.events.empty() &&
+         problem.model.dimension() < kMaxConcurrentDimension &&
+         std::thread::hardware_concurrency() >= 2;
+}
+
+ConcurrentErrorEstimate::ConcurrentErrorEstimate(const InitialValueProblem& problem,
+                                                 const Method& method,
+                                                 const IntegratorOptions& options,
+                                                 std::vector<std::size_t> stored)
+    : problem_(problem),
+      method_(method),
+      options_(options),
+      stored_(std::move(stored)),
+      cancel_(std::make_shared<std::atomic<bool>>(false)) {
+  // std::async(launch::async) runs on its own thread at once; the future's exception (a
+  // companion that throws, as estimate_error would have thrown) is rethrown by finish().
+  runs_ = std::async(std::launch::async, [this] {
+    return std::make_shared<const CompanionRuns>(
+        run_companions(problem_, method_, options_, stored_, cancel_));
+  });
+}
+
+ConcurrentErrorEstimate::~ConcurrentErrorEstimate() {
+  // Not finished (the main run threw): stop the companions at their next step and wait for them.
+  if (runs_.valid()) {
+    cancel_->store(true, std::memory_order_relaxed);
+    runs_.wait();
+  }
+}
+
+void ConcurrentErrorEstimate::finish(Solution& solution) {
+  ErrorEstimate& e = solution.error_estimate;
+  e = ErrorEstimate{};
+  e.note = no_estimate(options_, solution);
+  if (!e.note.empty() || solution.step != stored_) {
+    // No estimate for this run (the companions' results are dropped, as estimate_error would not
+    // have made them), or — never expected — other stored steps than predicted: the sequential
+    // estimate then runs.
+    cancel_->store(true, std::memory_order_relaxed);
+    runs_.wait();
+    runs_ = {};
+    if (e.note.empty()) estimate_error(problem_, method_, options_, solution);
+    return;
+  }
+  const std::shared_ptr<const CompanionRuns> runs = runs_.get();
+  combine(problem_, method_, *runs, solution, e);
+  e.concurrent = true;
 }
 
 Solution integrate_to_tolerance(const InitialValueProblem& problem, const Method& method,

@@ -327,7 +327,8 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
         {"observed_order", json_number(s.error_estimate.observed_order)},
         {"nodes", s.error_estimate.nodes},
         {"note", s.error_estimate.note},
-        {"wall_seconds", s.error_estimate.wall_seconds}}},
+        {"wall_seconds", s.error_estimate.wall_seconds},
+        {"concurrent", s.error_estimate.concurrent}}},
       {"tolerance_runs", tolerance_runs_json(s)},
       {"max_balance_error", json_number(s.max_balance_error)},
       {"newton_iterations", s.newton_iterations},
@@ -411,6 +412,10 @@ void read_summary(const nlohmann::json& summary, Solution& s, const std::string&
   s.error_estimate.nodes = r.count(details, "nodes");
   s.error_estimate.note = r.text(details, "note");
   s.error_estimate.wall_seconds = r.number(details, "wall_seconds");
+  // Absent in summaries written before the companions could run alongside the run.
+  s.error_estimate.concurrent = details.contains("concurrent") &&
+                                details.at("concurrent").is_boolean() &&
+                                details.at("concurrent").get<bool>();
   s.tolerance_runs.clear();
   const auto& runs = r.at(summary, "tolerance_runs");
   if (!runs.is_array()) r.fail("tolerance_runs", "is not an array");

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -77,14 +78,24 @@ Solution solve_prepared(const PreparedRun& prepared, std::unique_ptr<Integrator>
   if (!integrator) {
     integrator = std::make_unique<Integrator>(prepared.problem, prepared.method, prepared.options);
   }
+  // Accuracy, not consistency: Richardson from companion runs (analysis/error_estimate.hpp), on a
+  // second thread alongside the run where that applies (the same runs, the same estimate).
+  std::optional<ConcurrentErrorEstimate> concurrent;
+  if (ConcurrentErrorEstimate::applies(prepared.problem, prepared.options)) {
+    concurrent.emplace(prepared.problem, prepared.method, prepared.options,
+                       stored_steps(prepared.problem.steps, prepared.options.save_every));
+  }
   if (on_step) {
     integrator->run([&on_step](const StepView& s) { on_step(s.k); });
   } else {
     integrator->run();
   }
   Solution solution = integrator->take_solution();
-  // Accuracy, not consistency: Richardson from companion runs (analysis/error_estimate.hpp).
-  estimate_error(prepared.problem, prepared.method, prepared.options, solution);
+  if (concurrent) {
+    concurrent->finish(solution);
+  } else {
+    estimate_error(prepared.problem, prepared.method, prepared.options, solution);
+  }
   return solution;
 }
 

@@ -19,7 +19,10 @@
 // (tests/analysis/error_estimate_test.cpp, docs/verification.md).
 #pragma once
 
+#include <atomic>
 #include <functional>
+#include <future>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -36,6 +39,54 @@ namespace fracvi {
 /// Never throws for a failing companion run: the note says what happened.
 void estimate_error(const InitialValueProblem& problem, const Method& method,
                     const IntegratorOptions& options, Solution& solution);
+
+namespace internal {
+struct CompanionRuns;  // error_estimate.cpp
+}  // namespace internal
+
+/// Below this many degrees of freedom ConcurrentErrorEstimate runs the companions on a second
+/// thread: a step's history then stays below FastHistory's kParallelWork (2^18 multiply–adds for
+/// K + window ≤ 128 terms), so the main run never starts a thread team that the companion thread
+/// would compete with (two busy teams on two cores are slower than one after the other).
+inline constexpr Eigen::Index kMaxConcurrentDimension = 2048;
+
+/// estimate_error() with its companion runs on a second thread, started before the main run:
+/// they depend on it only through the steps it stores (known before it runs, io/output.hpp
+/// stored_steps), so they can run alongside it and its mirror run. On two cores a run that
+/// stores its estimate costs ≈ 2 N step-costs of wall time instead of 2.75 N (N, N for the mirror,
+/// N/2 + N/4 + the initial layer). The same runs as estimate_error, so the same estimate, bit for
+/// bit; ErrorEstimate::concurrent says that wall_seconds overlapped the stepping.
+/// Construct it after the main Integrator (so that a refused run starts nothing), call finish()
+/// after the main run; the destructor of an unfinished one stops the companions (through their
+/// interrupt hook) and waits for them. The interrupt hook of `options` must be callable from the
+/// second thread (the CLI's reads a signal flag).
+class ConcurrentErrorEstimate {
+ public:
+  /// Whether the companions may run concurrently: an estimate is requested, method.threads ≠ 1
+  /// (1 means one thread), no output times or events (the stored steps are then known and the run
+  /// cannot stop early), d < kMaxConcurrentDimension, and at least two hardware threads.
+  static bool applies(const InitialValueProblem& problem, const IntegratorOptions& options);
+
+  /// `stored`: the steps the main run will store (Solution::step).
+  ConcurrentErrorEstimate(const InitialValueProblem& problem, const Method& method,
+                          const IntegratorOptions& options, std::vector<std::size_t> stored);
+  ~ConcurrentErrorEstimate();
+  ConcurrentErrorEstimate(const ConcurrentErrorEstimate&) = delete;
+  ConcurrentErrorEstimate& operator=(const ConcurrentErrorEstimate&) = delete;
+
+  /// Waits for the companions and fills solution.error_estimate as estimate_error() would (the
+  /// same note when the run did not succeed or stopped at an event). Rethrows what a companion
+  /// threw.
+  void finish(Solution& solution);
+
+ private:
+  InitialValueProblem problem_;
+  const Method& method_;
+  IntegratorOptions options_;
+  std::vector<std::size_t> stored_;
+  std::shared_ptr<std::atomic<bool>> cancel_;
+  std::future<std::shared_ptr<const internal::CompanionRuns>> runs_;
+};
 
 /// Runs `problem` with problem.steps, 2·problem.steps, 4·problem.steps, … steps, each with its
 /// error estimate, until the estimate is ≤ options.tolerance (> 0 required), and returns the last

@@ -47,6 +47,9 @@ struct ErrorEstimate {
   std::string method;         ///< e.g. "richardson (N/2, N/4)"; empty when none
   std::string note;           ///< why there is none, or what limits it
   double wall_seconds = 0.0;  ///< the companion runs
+  /// The companion runs ran on a second thread alongside the run (ConcurrentErrorEstimate):
+  /// wall_seconds overlapped the stepping instead of following it.
+  bool concurrent = false;
 };
 
 /// One run of the doubling of integrate_to_tolerance() (fracvi/analysis/error_estimate.hpp).
