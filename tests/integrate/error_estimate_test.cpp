@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <functional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "../support/linear_oscillator_reference.hpp"
@@ -208,6 +209,51 @@ TEST(ErrorEstimate, NoneWithoutASuccessfulRunOrWhenNotRequested) {
   estimate_error(problem, method, options, sol);
   EXPECT_TRUE(std::isnan(sol.error_estimate.value));
   EXPECT_NE(sol.error_estimate.note.find("did not succeed"), std::string::npos);
+}
+
+// The companions on a second thread are the same runs: the same estimate, bit for bit, and the
+// same note (here the initial layer's); a run that did not succeed gets the sequential note, and
+// an estimate never finished (the main run threw) stops its companions and returns.
+TEST(ErrorEstimate, ConcurrentCompanionsGiveTheSequentialEstimate) {
+  const test::LinearOscillator caputo15 = test::fractional_oscillator(1.5, Convention::kCaputo);
+  const InitialValueProblem problem =
+      test::oscillator_problem(caputo15, Convention::kCaputo, 4000, 5.0);
+  const Method method = *parse_method("fvi-lobatto3");
+  IntegratorOptions options;
+  options.mirror = false;
+  options.save_every = 8;
+  ASSERT_TRUE(ConcurrentErrorEstimate::applies(problem, options) ||
+              std::thread::hardware_concurrency() < 2);
+  std::vector<std::size_t> stored;
+  for (std::size_t k = 0; k < problem.steps; k += options.save_every) stored.push_back(k);
+  stored.push_back(problem.steps);
+  Solution sequential = integrate(problem, method, options);
+  ASSERT_TRUE(sequential.ok()) << sequential.message;
+  Solution concurrent = sequential;
+  estimate_error(problem, method, options, sequential);
+  {
+    ConcurrentErrorEstimate estimate(problem, method, options, stored);
+    estimate.finish(concurrent);
+  }
+  EXPECT_EQ(concurrent.error_estimate.value, sequential.error_estimate.value);
+  EXPECT_EQ(concurrent.error_estimate.note, sequential.error_estimate.note);
+  EXPECT_EQ(concurrent.error_estimate.nodes, sequential.error_estimate.nodes);
+  EXPECT_EQ(concurrent.error_estimate.method, sequential.error_estimate.method);
+  EXPECT_TRUE(concurrent.error_estimate.concurrent);
+  EXPECT_FALSE(sequential.error_estimate.concurrent);
+
+  Solution failed = concurrent;
+  failed.status = Status::kNewtonFailure;
+  {
+    ConcurrentErrorEstimate estimate(problem, method, options, stored);
+    estimate.finish(failed);
+  }
+  EXPECT_TRUE(std::isnan(failed.error_estimate.value));
+  EXPECT_NE(failed.error_estimate.note.find("did not succeed"), std::string::npos);
+  { const ConcurrentErrorEstimate unfinished(problem, method, options, stored); }
+
+  options.threads = 1;  // one thread means one thread
+  EXPECT_FALSE(ConcurrentErrorEstimate::applies(problem, options));
 }
 
 }  // namespace
