@@ -673,6 +673,8 @@ Status LobattoStepper::advance() {
   // iteration: the sparse LU dominated the cost of the chains, bench/RESULTS.md).
   constexpr double kRefactorContraction = 0.25;
   bool refactor = !factored_;
+  // A matrix kept from an earlier step has no observed contraction at the first correction.
+  const bool kept_from_earlier_step = !refactor && !linear_;
   double previous_correction = std::numeric_limits<double>::infinity();
   for (;;) {
     interval_force(cur_, w0_, s_ - 1);
@@ -713,7 +715,12 @@ Status LobattoStepper::advance() {
     const double tolerance =
         std::max(newton.absolute_tolerance + newton.relative_tolerance * scale,
                  4.0 * std::numeric_limits<double>::epsilon() * roundoff_scale);
-    if (correction <= tolerance) break;
+    const double contraction = iterations == 1 && kept_from_earlier_step
+                                   ? std::numeric_limits<double>::infinity()
+                                   : correction / previous_correction;
+    if (newton_converged(correction, tolerance, contraction,
+                         4.0 * std::numeric_limits<double>::epsilon() * roundoff_scale))
+      break;
     if (correction > kRefactorContraction * previous_correction) refactor = true;
     previous_correction = correction;
     if (iterations >= newton.max_iterations) {
@@ -867,6 +874,7 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
     y.stages = y.delta;
     y.stages.colwise() += node;
     stage_forces(y, 0, s_);
+    double previous_correction = std::numeric_limits<double>::infinity();
     for (int iteration = 1;; ++iteration) {
       interval_force(y, current, s_, -1.0);
       for (int r = 0; r + 1 < s_; ++r) residual.segment(r * d_, d_) = -y.force.col(r + 1);
@@ -887,7 +895,10 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
       const double tolerance =
           std::max(options_.newton.absolute_tolerance + options_.newton.relative_tolerance * scale,
                    4.0 * std::numeric_limits<double>::epsilon() * scale);
-      if (correction <= tolerance) break;
+      if (newton_converged(correction, tolerance, correction / previous_correction,
+                           4.0 * std::numeric_limits<double>::epsilon() * scale))
+        break;
+      previous_correction = correction;
       if (iteration >= options_.newton.max_iterations) return kNaN;
     }
     interval_force(y, current, s_, -1.0);

@@ -187,8 +187,8 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
   // differs from the current one by O(‖Δ_k − Δ_1‖), so the contraction is linear with a rate of
   // that order; a step that converges in two iterations then costs one factorisation and two
   // solves instead of two of each). Otherwise J is refactored at the current iterate: a full
-  // Newton iteration. The convergence test is unchanged, so the accepted increment meets the same
-  // tolerance (the error after the last correction is ≈ rate × ‖δ‖, below it). The dense path
+  // Newton iteration. The stopping rule (newton_converged) also bounds the error a slowly
+  // contracting iterate leaves, θ/(1 − θ)·‖δ‖, by the tolerance. The dense path
   // (small systems, and every system with a state force, whose Jacobians would be stale) keeps
   // full Newton.
   const bool keep_factor = !linear_ && backend_ != LinearSolver::kDense;
@@ -235,11 +235,13 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
     }
     // The equation is linear: one correction from any guess is its solution.
     if (linear_) return report;
-    factor_now = !keep_factor || report.correction > kKeptFactorContraction * previous_correction;
+    const double contraction = report.correction / previous_correction;  // 0 at it = 1
+    factor_now = !keep_factor || contraction > kKeptFactorContraction;
     previous_correction = report.correction;
     const double scale = std::max((a + increment).cwiseAbs().maxCoeff(), a_norm);
     report.tolerance = options_.absolute_tolerance + options_.relative_tolerance * scale;
-    if (report.correction <= report.tolerance) return report;
+    const double roundoff = 4.0 * std::numeric_limits<double>::epsilon() * scale;
+    if (newton_converged(report.correction, report.tolerance, contraction, roundoff)) return report;
   }
   report.status = Status::kNewtonFailure;
   return report;
