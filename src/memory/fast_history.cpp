@@ -1,17 +1,43 @@
 #include "fracvi/memory/fast_history.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cassert>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <utility>
 
 #include "fracvi/internal/parallel.hpp"
 #include "fracvi/internal/vectorize.hpp"
 
 namespace fracvi {
+
+// One block of rows of FastHistory::push(): the K recursions Y_j ← e^{−λ_j} Y_j + x̃_{k−n0} with
+// the tail Σ_j w_j Y_j, then the sum = tail + the window's exact weights against the last n0
+// values. Plain loops over restrict pointers (the Eigen block expressions of the same loop ran at
+// half the speed; Eigen's gemv for the window is a separate pass over the block).
+namespace internal {
+
+struct FastHistoryBlock {
+  Eigen::Index rows, terms, state_stride, window, ring_stride;
+  double* state;
+  double* tail;
+  double* sum;
+  const double* leaving;   // x̃_{k−n0}: ring column `slot`, overwritten by x̃_k below
+  const double* entering;  // x̃_k
+  double* slot;            // its two ring columns
+  double* slot_copy;
+  const double* window_first;  // ring column of x̃_{k−n0+1}; the window's columns follow it
+  const double* decay;
+  const double* weights;
+  const double* head_reversed;
+};
+
+}  // namespace internal
 
 namespace {
 
@@ -30,34 +56,16 @@ std::shared_ptr<const ExponentialFit> checked_fit(std::shared_ptr<const Exponent
   return fit;
 }
 
-// One block of rows of FastHistory::push(): the K recursions Y_j ← e^{−λ_j} Y_j + x̃_{k−n0} with
-// the tail Σ_j w_j Y_j, then the sum = tail + the window's exact weights against the last n0
-// values. Plain loops over restrict pointers (the Eigen block expressions of the same loop ran at
-// half the speed; Eigen's gemv for the window is a separate pass over the block).
-struct FastHistoryBlock {
-  Eigen::Index rows, terms, state_stride, window, ring_stride;
-  double* state;
-  double* tail;
-  double* sum;
-  const double* leaving;   // x̃_{k−n0}: ring column `slot`, overwritten by x̃_k below
-  const double* entering;  // x̃_k
-  double* slot;            // its two ring columns
-  double* slot_copy;
-  const double* window_first;  // ring column of x̃_{k−n0+1}; the window's columns follow it
-  const double* decay;
-  const double* weights;
-  const double* head_reversed;
-};
-
-// This kernel is most of a step of a large system (bench/RESULTS.md): it carries an x86-64-v3
-// clone (internal/vectorize.hpp).
+// These kernels are most of a step of a large system (bench/RESULTS.md): they carry an x86-64-v3
+// clone (internal/vectorize.hpp). The restrict pointers live in the scope of one loop each:
+// x̃_{k−n0} and the slot x̃_k takes are the same memory, read by the recursions and written by the
+// window's pass. Four recursions (and four window columns) share one load and store of the tail
+// (the sum): the loop is bound by loads and stores, not by multiply–adds (perf: one recursion per
+// pass ran at ≈ 2 stores per multiply–add pair). The two passes are separate kernels because the
+// second thread of a team of two runs the first one step ahead (fast_history.hpp); one thread runs
+// them block by block, so that the tail's block is still in L1 for the window.
 FRACVI_HOT_KERNEL
-void push_block(const FastHistoryBlock& blk) {
-  // The restrict pointers live in the scope of one loop each: x̃_{k−n0} and the slot x̃_k takes
-  // are the same memory, read by the first loop and written by the second. Four recursions (and
-  // four window columns) share one load and store of the tail (the sum): the loop is bound by
-  // loads and stores, not by multiply–adds (perf: one recursion per pass ran at ≈ 2 stores per
-  // multiply–add pair).
+void recursion_block(const internal::FastHistoryBlock& blk) {
   const Eigen::Index n = blk.rows, terms = blk.terms, stride = blk.state_stride;
   double* const state = blk.state;
   if (terms > 0) {
@@ -96,6 +104,11 @@ void push_block(const FastHistoryBlock& blk) {
       }
     }
   }
+}
+
+FRACVI_HOT_KERNEL
+void window_block(const internal::FastHistoryBlock& blk) {
+  const Eigen::Index n = blk.rows;
   {
     const double* __restrict x = blk.entering;
     double* __restrict slot = blk.slot;
@@ -128,21 +141,21 @@ void push_block(const FastHistoryBlock& blk) {
 }
 
 // The same update for a system of fewer than kAcrossTermsBelow degrees of freedom: along the
-// degrees of freedom there is nothing to vectorise (at d = 1 push_block's loops run one iteration
-// per recursion: ≈ 30 % of a d = 1 step, bench/RESULTS.md), so each row runs along its K
-// recursions instead (the four new Y_j of a group in one vector). The additions keep push_block's
-// order exactly — groups of four summed pairwise, then into the tail in ascending j; the window
-// likewise onto the tail — so a row's sum is bit for bit that of the same row inside a larger
-// system (tested for K = 29 … 63). That order matters:
-// the window's terms cancel from O(|x̃|) to O(h^β |x̃|), and eight interleaved partial sums
-// measured 4× the round-off of the sum (mean |Ŝ − S| 9e-17 against 2.3e-17, d = 1, N = 10^5,
-// ε = 1e-13, against the exact sum in long double).
+// degrees of freedom there is nothing to vectorise (at d = 1 recursion_block's loops run one
+// iteration per recursion: ≈ 30 % of a d = 1 step, bench/RESULTS.md), so each row runs along its K
+// recursions instead (the four new Y_j of a group in one vector). The additions keep
+// recursion_block's and window_block's order exactly — groups of four summed pairwise, then into
+// the tail in ascending j; the window likewise onto the tail — so a row's sum is bit for bit that
+// of the same row inside a larger system (tested for K = 29 … 63). That order matters: the window's
+// terms cancel from O(|x̃|) to O(h^β |x̃|), and eight interleaved partial sums measured 4× the
+// round-off of the sum (mean |Ŝ − S| 9e-17 against 2.3e-17, d = 1, N = 10^5, ε = 1e-13, against the
+// exact sum in long double).
 constexpr Eigen::Index kAcrossTermsBelow = 4;
 
 // kOneRow: d = 1, where the recursions and the window's values are contiguous (stride 1 known
 // to the compiler, so a group's four recursions are one vector operation).
 template <bool kOneRow>
-[[gnu::always_inline]] inline void rows_across_terms(const FastHistoryBlock& blk) {
+[[gnu::always_inline]] inline void rows_across_terms(const internal::FastHistoryBlock& blk) {
   const Eigen::Index terms = blk.terms;
   const Eigen::Index stride = kOneRow ? 1 : blk.state_stride;
   const Eigen::Index ld = kOneRow ? 1 : blk.ring_stride;
@@ -166,7 +179,7 @@ template <bool kOneRow>
       tail += blk.weights[j] * v;
     }
     blk.tail[i] = tail;
-    // x̃_k enters the ring after x̃_{k−n0} was read: the same memory (see push_block).
+    // x̃_k enters the ring after x̃_{k−n0} was read: the same memory (see recursion_block).
     blk.slot[i] = blk.slot_copy[i] = blk.entering[i];
     const double* col = blk.window_first + i;
     const double* head = blk.head_reversed;
@@ -182,7 +195,7 @@ template <bool kOneRow>
 }
 
 FRACVI_HOT_KERNEL
-void push_rows_across_terms(const FastHistoryBlock& blk) {
+void push_rows_across_terms(const internal::FastHistoryBlock& blk) {
   if (blk.rows == 1 && blk.state_stride == 1 && blk.ring_stride == 1) {
     rows_across_terms<true>(blk);
   } else {
@@ -211,6 +224,71 @@ std::size_t fast_history_fit_lag(std::size_t capacity) {
   return max_lag > (std::size_t{1} << 62) ? max_lag : std::bit_ceil(max_lag);
 }
 
+// The second thread of a team of two: it runs the recursions of the next push while the caller
+// computes the rest of its step (fast_history.hpp). One job at a time, handed over through one
+// atomic: kIdle (no job, or its results published), kWork (slot posted), kStop. Each side spins a
+// while before it sleeps on the atomic (futex): a job posted at the end of a push is usually
+// finished before the next push, and the next job comes one step later, so at the sizes where a
+// team pays (≥ kParallelWork multiply–adds per push, tens of microseconds) the handover stays in
+// the spin. Neither side allocates after construction.
+class FastHistory::AheadThread {
+ public:
+  explicit AheadThread(FastHistory& history) : history_(history), worker_([this] { serve(); }) {}
+  ~AheadThread() {
+    finish();
+    job_.store(kStop, std::memory_order_release);
+    job_.notify_one();
+    worker_.join();
+  }
+  AheadThread(const AheadThread&) = delete;
+  AheadThread& operator=(const AheadThread&) = delete;
+
+  /// Starts the recursions with x̃ from ring column `leaving_slot`.
+  void post(Eigen::Index leaving_slot) {
+    slot_ = leaving_slot;
+    job_.store(kWork, std::memory_order_release);
+    job_.notify_one();
+  }
+  /// Returns once the job posted last (if any) has finished; its writes are then visible.
+  void finish() const { await_other_than(kWork); }
+
+ private:
+  static constexpr int kIdle = 0, kWork = 1, kStop = 2;
+  // ≈ 0.1–0.5 ms of pause instructions, longer than the gap between two pushes at the sizes
+  // where the team is used.
+  static constexpr int kSpins = 1 << 14;
+
+  int await_other_than(int busy) const {
+    for (int i = 0; i < kSpins; ++i) {
+      const int now = job_.load(std::memory_order_acquire);
+      if (now != busy) return now;
+#if defined(__x86_64__) || defined(__i386__)
+      __builtin_ia32_pause();
+#endif
+    }
+    int now = job_.load(std::memory_order_acquire);
+    while (now == busy) {
+      job_.wait(busy, std::memory_order_acquire);
+      now = job_.load(std::memory_order_acquire);
+    }
+    return now;
+  }
+
+  void serve() {
+    for (;;) {
+      if (await_other_than(kIdle) == kStop) return;
+      history_.recursions(slot_);
+      job_.store(kIdle, std::memory_order_release);
+      job_.notify_one();
+    }
+  }
+
+  FastHistory& history_;
+  Eigen::Index slot_ = 0;
+  mutable std::atomic<int> job_{kIdle};
+  std::thread worker_;  // last: it starts serving once the members above exist
+};
+
 FastHistory::FastHistory(std::shared_ptr<const ExponentialFit> fit, Eigen::Index dimension,
                          std::size_t capacity)
     : fit_(checked_fit(std::move(fit), dimension, capacity)), capacity_(capacity) {
@@ -229,12 +307,56 @@ FastHistory::FastHistory(std::shared_ptr<const ExponentialFit> fit, Eigen::Index
   state_.setZero(dimension, k);
   tail_.setZero(dimension);
   sum_.setZero(dimension);
-  team_.configure(0, internal::team_size(0, dimension * (k + window_), kParallelWork));
+  configure_threads(0);
 }
 
 FastHistory::FastHistory(double order, Eigen::Index dimension, std::size_t capacity,
                          double tolerance)
     : FastHistory(gl_fit(order, dimension, capacity, tolerance), dimension, capacity) {}
+
+FastHistory::~FastHistory() = default;
+
+namespace {
+
+// Blocks of kBlock rows keep the tail's block in L1 while the K columns pass over it.
+constexpr Eigen::Index kBlock = 256;
+
+}  // namespace
+
+// The block of rows [b, b + n) of a push whose new value x̃ is `entering` (null for the
+// recursions alone), x̃_{k−n0} in ring column `slot`, the window starting at column `first`.
+internal::FastHistoryBlock FastHistory::block(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
+                                              Eigen::Index slot, Eigen::Index first,
+                                              const double* entering) {
+  return {n,
+          terms,
+          state_.rows(),
+          window_,
+          ring_.rows(),
+          state_.data() + b,
+          tail_.data() + b,
+          sum_.data() + b,
+          ring_.col(slot).data() + b,
+          entering == nullptr ? nullptr : entering + b,
+          ring_.col(slot).data() + b,
+          ring_.col(slot + window_).data() + b,
+          ring_.col(first).data() + b,
+          decay_.data(),
+          weights_.data(),
+          head_reversed_.data()};
+}
+
+void FastHistory::recursions(Eigen::Index leaving_slot) {
+  const Eigen::Index d = ring_.rows(), terms = state_.cols();
+  for (Eigen::Index b = 0; b < d; b += kBlock) {
+    const Eigen::Index n = std::min(kBlock, d - b);
+    recursion_block(block(b, n, terms, leaving_slot, 0, nullptr));
+  }
+}
+
+void FastHistory::finish_ahead() const {
+  if (ahead_thread_) ahead_thread_->finish();
+}
 
 void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   assert(size_ < capacity_ && x_tilde.size() == ring_.rows());
@@ -245,64 +367,74 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   // with first = (k + 1) mod n0; before k = n0 − 1 the missing ones are the zeros the ring was
   // cleared to.
   const auto first = static_cast<Eigen::Index>((size_ + 1) % n0);
-  const auto leaving = ring_.col(slot);
-  const Eigen::Index terms = state_.cols(), stride = state_.rows();
+  const Eigen::Index terms = state_.cols(), d = ring_.rows();
   // One pass per block of degrees of freedom, all in one parallel region (each region costs a
   // barrier): (1) x̃_{k−n0} leaves the window (it sits in the slot x̃_k is about to take) and enters
-  // every recursion, Y_j ← e^{−λ_j} Y_j + x̃_{k−n0}, and the tail Σ_j w_j Y_j is formed; (2) x̃_k
-  // enters the ring; (3) the sum = window · exact weights + tail, returned by sum().
-  // Y_j is column j of the d × K state, so the recursions run along the degrees of freedom (long
-  // contiguous vectors); blocks of kBlock rows keep the tail's block in L1 while the K columns pass
-  // over it.
-  constexpr Eigen::Index kBlock = 256;
-  const bool small = ring_.rows() < kAcrossTermsBelow;
+  // every recursion, Y_j ← e^{−λ_j} Y_j + x̃_{k−n0}, and the tail Σ_j w_j Y_j is formed — unless
+  // they were run ahead; (2) x̃_k enters the ring; (3) the sum = window · exact weights + tail,
+  // returned by sum(). Y_j is column j of the d × K state, so the recursions run along the degrees
+  // of freedom (long contiguous vectors).
+  const bool small = d < kAcrossTermsBelow;
+  const double* entering = x_tilde.data();
+  // The pushes before the window is full skip the recursions: the thread choice measures again.
+  if (size_ == n0) team_.restart();
+  const int threads = team_.next();
+  const auto start = team_.measuring() ? std::chrono::steady_clock::now()
+                                       : std::chrono::steady_clock::time_point{};
+  finish_ahead();
+  const bool run_recursions = recurse && !ahead_;
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
     for (Eigen::Index b = lo; b < hi; b += kBlock) {
       const Eigen::Index n = std::min(kBlock, hi - b);
-      const FastHistoryBlock block{n,
-                                   recurse ? terms : Eigen::Index{0},
-                                   stride,
-                                   window_,
-                                   ring_.rows(),
-                                   state_.data() + b,
-                                   tail_.data() + b,
-                                   sum_.data() + b,
-                                   leaving.data() + b,
-                                   x_tilde.data() + b,
-                                   ring_.col(slot).data() + b,
-                                   ring_.col(slot + window_).data() + b,
-                                   ring_.col(first).data() + b,
-                                   decay_.data(),
-                                   weights_.data(),
-                                   head_reversed_.data()};
-      if (small) {
-        push_rows_across_terms(block);
+      const internal::FastHistoryBlock rows =
+          block(b, n, run_recursions ? terms : 0, slot, first, entering);
+      if (small && !ahead_) {
+        push_rows_across_terms(rows);
       } else {
-        push_block(block);
+        recursion_block(rows);
+        window_block(rows);
       }
     }
   };
-  const Eigen::Index d = ring_.rows();
-  // The pushes before the window is full skip the recursions: the thread choice measures again.
-  if (size_ == static_cast<std::size_t>(window_)) team_.restart();
-  internal::for_blocks(d, team_, update);
+  // A team of two runs the recursions ahead (the caller only adds the window); a larger team
+  // splits the rows.
+  internal::for_blocks(d, ahead_thread_ ? 1 : threads, update);
+  ahead_ = false;
   ++size_;
+  if (ahead_thread_ && threads > 1 && size_ >= n0 && size_ < capacity_) {
+    ahead_thread_->post(static_cast<Eigen::Index>(size_ % n0));
+    ahead_ = true;
+  }
+  if (team_.measuring()) {
+    team_.record(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  }
 }
 
 void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
   assert(size_ >= 1 && out.size() == ring_.rows());
-  out = sum_;  // formed by push()
+  out = sum_;  // formed by push() (never by the second thread)
+}
+
+void FastHistory::configure_threads(int threads) {
+  finish_ahead();
+  team_.configure(threads, internal::team_size(threads, ring_.rows() * (state_.cols() + window_),
+                                               kParallelWork));
+  if (team_.team() == 2) {
+    if (!ahead_thread_) ahead_thread_ = std::make_unique<AheadThread>(*this);
+  } else {
+    ahead_thread_.reset();
+    internal::start_threads(team_.team());
+  }
 }
 
 void FastHistory::set_threads(int threads) {
-  team_.configure(threads, internal::team_size(threads, ring_.rows() * (state_.cols() + window_),
-                                               kParallelWork));
-  internal::start_threads(team_.team());
+  configure_threads(threads);
 }
 
 void FastHistory::visit_state(StateArchive& archive) {
   // The fit (λ_j, w_j, the window's exact weights) is rebuilt by the constructor from the same
   // options; its sizes are checked so that a checkpoint of another fit is refused.
+  finish_ahead();
   archive.expect("fast.dimension", static_cast<std::size_t>(ring_.rows()));
   archive.expect("fast.capacity", capacity_);
   archive.expect("fast.window", static_cast<std::size_t>(window_));
@@ -313,14 +445,21 @@ void FastHistory::visit_state(StateArchive& archive) {
   archive.dense("fast.recursions", state_);
   archive.dense("fast.tail", tail_);
   archive.dense("fast.sum", sum_);
+  // Whether the recursions and the tail already include the next push's x̃ (run ahead).
+  archive.flag("fast.ahead", ahead_);
+  if (ahead_ && (size_ < static_cast<std::size_t>(window_) || size_ >= capacity_)) {
+    throw CheckpointError("checkpoint record 'fast.ahead' is set where no push recurses");
+  }
 }
 
 void FastHistory::clear() {
+  finish_ahead();
   ring_.setZero();
   state_.setZero();
   tail_.setZero();
   sum_.setZero();
   size_ = 0;
+  ahead_ = false;
 }
 
 bool fast_history_pays(std::size_t capacity, Eigen::Index dimension) {

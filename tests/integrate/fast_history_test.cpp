@@ -407,11 +407,11 @@ TEST(FastHistory, ClearRestartsExactly) {
 
 TEST(FastHistory, SmallSystemsSumInTheOrderOfLargeOnes) {
   // Below 4 degrees of freedom push() runs each row along its K recursions (fast_history.cpp,
-  // push_rows_across_terms) instead of along the rows; it keeps push_block's order of additions,
-  // so a row's sum is bitwise that row's sum in a larger system (the order matters: interleaved
-  // partial sums measured 4× the round-off). d = 1 (contiguous) and 3 (strided) against the same
-  // rows inside d = 8, through the window's filling and 3000 steps of the tail, for K = 29 (a
-  // 3000-step fit at the default ε) and K = 63 (10^7 steps at ε = 2.9e-12, the fit of the d = 1
+  // push_rows_across_terms) instead of along the rows; it keeps the large-system kernels' order of
+  // additions, so a row's sum is bitwise that row's sum in a larger system (the order matters:
+  // interleaved partial sums measured 4× the round-off). d = 1 (contiguous) and 3 (strided) against
+  // the same rows inside d = 8, through the window's filling and 3000 steps of the tail, for K = 29
+  // (a 3000-step fit at the default ε) and K = 63 (10^7 steps at ε = 2.9e-12, the fit of the d = 1
   // run of bench/RESULTS.md): neither a multiple of 4, so the remainder terms are covered.
   const std::size_t n = 3000;
   const Eigen::MatrixXd xs = rough_sequence(static_cast<Eigen::Index>(n), 8, 11u);

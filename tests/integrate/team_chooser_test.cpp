@@ -12,6 +12,7 @@
 #include <random>
 #include <vector>
 
+#include "fracvi/core/state_archive.hpp"
 #include "fracvi/fractional/runge_kutta_cq.hpp"
 #include "fracvi/internal/team_chooser.hpp"
 #include "fracvi/memory/block_history.hpp"
@@ -132,6 +133,53 @@ TEST(TeamChooser, FastHistorySumsDoNotDependOnTheChoice) {
   }
   EXPECT_TRUE(bitwise_equal(sums[0], sums[1])) << "1 thread against a team of 2";
   EXPECT_TRUE(bitwise_equal(sums[0], sums[2])) << "1 thread against the measured choice";
+}
+
+// A team of two runs the recursions of the next push ahead on its second thread
+// (fast_history.hpp): a checkpoint taken then records them as done ("fast.ahead"), and a history
+// restored from it — on one thread or two — continues bit for bit like the uninterrupted run;
+// clear() waits for them and starts afresh.
+TEST(TeamChooser, FastHistoryRunAheadSurvivesCheckpointsAndClear) {
+  const Eigen::Index d = 6000;
+  const int pushes = 80, saved_after = 40;
+  const Eigen::MatrixXd xs = rough_input(d, pushes);
+  auto run = [&](FastHistory& history, int from, int to, Eigen::MatrixXd& out) {
+    Eigen::VectorXd s(d);
+    for (int k = from; k < to; ++k) {
+      history.push(xs.col(k));
+      history.sum(s);
+      out.col(k) = s;
+    }
+  };
+  Eigen::MatrixXd reference(d, pushes);
+  {
+    FastHistory one(1.5, d, 1 << 12);
+    one.set_threads(1);
+    run(one, 0, pushes, reference);
+  }
+  FastHistory two(1.5, d, 1 << 12);
+  two.set_threads(2);
+  Eigen::MatrixXd first_part(d, pushes);
+  run(two, 0, saved_after, first_part);
+  EXPECT_TRUE(bitwise_equal(first_part.leftCols(saved_after), reference.leftCols(saved_after)));
+  StateWriter writer;
+  two.visit_state(writer);
+  for (const int threads : {1, 2}) {
+    FastHistory restored(1.5, d, 1 << 12);
+    restored.set_threads(threads);
+    StateReader reader(writer.bytes(), "test state");
+    restored.visit_state(reader);
+    reader.finish();
+    Eigen::MatrixXd rest(d, pushes);
+    run(restored, saved_after, pushes, rest);
+    EXPECT_TRUE(bitwise_equal(rest.rightCols(pushes - saved_after),
+                              reference.rightCols(pushes - saved_after)))
+        << "restored on " << threads << " thread(s)";
+  }
+  two.clear();
+  Eigen::MatrixXd again(d, pushes);
+  run(two, 0, pushes, again);
+  EXPECT_TRUE(bitwise_equal(again, reference)) << "after clear()";
 }
 
 TEST(TeamChooser, FastBlockHistorySumsDoNotDependOnTheChoice) {

@@ -17,6 +17,14 @@
 // in one pass over the d × K state (one parallel region per step); sum() returns the result. The
 // ring stores every value twice (columns p and p + n0) so that the last n0 values are always n0
 // contiguous columns. Neither allocates nor throws; all storage is sized at construction.
+//
+// Recursions one step ahead (a team of two threads). The recursions of push k use x̃_{k−n0}, known
+// since push k − n0; only the window needs x̃_k. So with two threads the second one runs push k+1's
+// recursions and tail while the caller computes the rest of step k+1, and push k+1 only waits for
+// them and adds the window: the history's bulk (K of its K + n0 multiply–adds per degree of
+// freedom) leaves the caller's path instead of being split with it (the rest of a step is serial:
+// at d = 10^4 a split history allowed ≤ 1.3×, bench/RESULTS.md). The operations and their order are
+// those of the one-thread push, so the sums are bit for bit the same.
 #pragma once
 
 #include <Eigen/Dense>
@@ -29,6 +37,10 @@
 #include "fracvi/memory/history.hpp"
 
 namespace fracvi {
+
+namespace internal {
+struct FastHistoryBlock;  // the rows one kernel call updates (fast_history.cpp)
+}  // namespace internal
 
 class FastHistory final : public History {
  public:
@@ -44,6 +56,9 @@ class FastHistory final : public History {
   /// LocalHistory) and for dimension < 1 or capacity < 1.
   FastHistory(double order, Eigen::Index dimension, std::size_t capacity,
               double tolerance = kDefaultFitTolerance);
+  ~FastHistory() override;
+  FastHistory(const FastHistory&) = delete;
+  FastHistory& operator=(const FastHistory&) = delete;
 
   void push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) override;
   void sum(Eigen::Ref<Eigen::VectorXd> out) const override;
@@ -89,6 +104,19 @@ class FastHistory final : public History {
   Eigen::VectorXd sum_;            // the whole sum after the last push (d)
   std::size_t size_ = 0;
   internal::TeamChooser team_;  // threads per push: measured (threads = 0) or as set
+  // Y_j and tail_ already hold the recursions of the next push (posted to the second thread, or
+  // restored from a checkpoint taken while they were).
+  bool ahead_ = false;
+  class AheadThread;  // the second thread of a team of two (fast_history.cpp)
+  std::unique_ptr<AheadThread> ahead_thread_;
+
+  void configure_threads(int threads);
+  // Rows [b, b + n) of a push: `terms` recursions (0: none) with x̃ from ring column `slot`, the
+  // window from column `first`, the new value `entering` (null: the recursions alone).
+  internal::FastHistoryBlock block(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
+                                   Eigen::Index slot, Eigen::Index first, const double* entering);
+  void recursions(Eigen::Index leaving_slot);  // Y_j ← e^{−λ_j} Y_j + x̃, tail_ (all rows)
+  void finish_ahead() const;                   // waits for recursions in flight
 };
 
 /// Multiply–adds per step ((K + n0)·d: the recursions and the window) from which FastHistory
