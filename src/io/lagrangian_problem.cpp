@@ -307,8 +307,9 @@ void write_bvp_output(const std::filesystem::path& dir, const ProblemSpec& spec,
   for (Eigen::Index i = 1; i <= d; ++i) csv += ",x" + std::to_string(i);
   for (Eigen::Index i = 1; i <= d; ++i) csv += ",y" + std::to_string(i);
   csv += ",residual_x,residual_y\n";
+  const long long every = stored_every(spec);
   for (Eigen::Index k = 0; k < rows; ++k) {
-    if (k % stored_every(spec) != 0 && k != rows - 1) continue;
+    if (k % every != 0 && k != rows - 1) continue;
     append_csv_number(csv, s.t[k]);
     for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_csv_number(csv, s.x(k, i));
     for (Eigen::Index i = 0; i < d; ++i) csv += ',', append_csv_number(csv, s.y(k, i));
