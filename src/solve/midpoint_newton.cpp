@@ -221,7 +221,12 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
     // δ overwrites the residual in place (no copy pass); the update, the size of the correction
     // and the finiteness check share one pass (max is exact: the same correction as before).
     Eigen::VectorXd* delta = &residual_;
-    if (backend_ == LinearSolver::kDense) {
+    if (backend_ == LinearSolver::kDense && residual_.size() == 1) {
+      // d = 1: the LU solve is the quotient by the one pivot (the permutation is the identity,
+      // the unit lower factor empty), without Eigen's general triangular-solve set-up (≈ 5 % of
+      // a d = 1 step, perf). The same division, so the same bits.
+      residual_[0] /= lu_.matrixLU()(0, 0);
+    } else if (backend_ == LinearSolver::kDense) {
       delta_ = lu_.solve(residual_);
       delta = &delta_;
     } else {
