@@ -205,10 +205,15 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
       grad_ -= force_value_;
     }
     A_.multiply(increment, residual_);
-    // One pass, the same roundings as += then −=: (M Δ + (h²/2) g) − c element by element.
-    residual_ = residual_ + half_h2_ * grad_ - c;
+    // One pass with its finiteness check, the same roundings as += then −=: (M Δ + (h²/2) g) − c
+    // element by element (a plain loop: Eigen's two passes cost ≈ 30 instructions at d = 1).
+    bool residual_finite = true;
+    for (Eigen::Index i = 0; i < residual_.size(); ++i) {
+      residual_[i] = (residual_[i] + half_h2_ * grad_[i]) - c[i];
+      residual_finite &= std::isfinite(residual_[i]);
+    }
     report.iterations = it;
-    if (!residual_.allFinite()) {
+    if (!residual_finite) {
       report.status = Status::kNonFinite;
       return report;
     }
