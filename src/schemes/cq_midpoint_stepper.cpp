@@ -290,9 +290,14 @@ double CqMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
     Eigen::VectorXd shifted, s;
     std::size_t n;
     void push(const Eigen::VectorXd& y, std::size_t j) {
-      shifted = y;
-      if (self.shift_x0_) shifted -= self.problem_.x0;
-      if (self.shift_v0_) shifted -= (static_cast<double>(n - j) * self.h_) * self.problem_.v0;
+      // ỹ_j in one element loop, the same roundings as y, then −x_0, then −(t_N − t_j) v_0.
+      const double span = static_cast<double>(n - j) * self.h_;
+      for (Eigen::Index i = 0; i < self.d_; ++i) {
+        double value = y[i];
+        if (self.shift_x0_) value -= self.problem_.x0[i];
+        if (self.shift_v0_) value -= span * self.problem_.v0[i];
+        shifted[i] = value;
+      }
       hist->push(shifted);
     }
     void start(const Eigen::VectorXd& y_n, const Eigen::VectorXd& y_n1) {
