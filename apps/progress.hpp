@@ -20,6 +20,9 @@ class ProgressBar {
   ProgressBar& operator=(const ProgressBar&) = delete;
   ~ProgressBar() { finish(); }
 
+  /// Whether it draws at all (a terminal, not --quiet).
+  [[nodiscard]] bool enabled() const { return enabled_; }
+
   /// Called after step k (cheap: looks at the clock every 256 steps).
   void update(std::size_t k) {
     if (!enabled_ || (k & 255U) != 0) return;

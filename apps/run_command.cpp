@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -131,10 +132,16 @@ Command add_run_command(CLI::App& parent) {
     Solution solution;
     {
       ProgressBar progress(problem.steps, !opt->quiet);
-      solution = solve_prepared(prepared, std::move(integrator), [&](std::size_t k) {
-        progress.update(k);
-        save_checkpoint(k);
-      });
+      // No observer when it would do nothing (no bar, no checkpoints): the call per step and its
+      // StepView were ≈ 2 % of a d = 1 step (perf).
+      std::function<void(std::size_t)> on_step;
+      if (progress.enabled() || every > 0) {
+        on_step = [&](std::size_t k) {
+          progress.update(k);
+          save_checkpoint(k);
+        };
+      }
+      solution = solve_prepared(prepared, std::move(integrator), on_step);
     }
     if (!write_results("run", dir, [&] { write_run_output(dir, spec, solution); })) {
       return kExitNumericalFailure;

@@ -184,7 +184,9 @@ Status CqMidpointStepper::advance() {
       return s;
     // p⁻_{k+1} = 2MΔ_k/h − p⁺_k (the two one-sided momenta average to M Δ_k/h).
     mass_.multiply(dx_, p_minus_);
-    p_minus_ = p_minus_ * (2.0 / h_) - p_plus_;  // one pass, the same roundings as *= then -=
+    // One pass, the same roundings as *= then −= (plain loops here and below: an Eigen
+    // expression's set-up costs more than its work at d = 1).
+    for (Eigen::Index i = 0; i < d_; ++i) p_minus_[i] = p_minus_[i] * (2.0 / h_) - p_plus_[i];
   }
   bool finite = true;  // x_{k+1} and its check in one pass
   for (Eigen::Index i = 0; i < d_; ++i) {
@@ -205,7 +207,7 @@ Status CqMidpointStepper::advance() {
     if (memory_start_ == MemoryStart::kTaylorSplit) add_polynomial_force(k + 1, sum_);
   }
   if (damped_) force_matrix_.multiply(sum_, force_next_);
-  p_ = p_minus_ - (0.5 * h_) * force_next_;
+  for (Eigen::Index i = 0; i < d_; ++i) p_[i] = p_minus_[i] - (0.5 * h_) * force_next_[i];
   mass_solver_.inverse(p_, v_next_);
 
   // Energy account (solution.hpp; start_step.md §4).
@@ -288,9 +290,14 @@ double CqMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
     Eigen::VectorXd shifted, s;
     std::size_t n;
     void push(const Eigen::VectorXd& y, std::size_t j) {
-      shifted = y;
-      if (self.shift_x0_) shifted -= self.problem_.x0;
-      if (self.shift_v0_) shifted -= (static_cast<double>(n - j) * self.h_) * self.problem_.v0;
+      // ỹ_j in one element loop, the same roundings as y, then −x_0, then −(t_N − t_j) v_0.
+      const double span = static_cast<double>(n - j) * self.h_;
+      for (Eigen::Index i = 0; i < self.d_; ++i) {
+        double value = y[i];
+        if (self.shift_x0_) value -= self.problem_.x0[i];
+        if (self.shift_v0_) value -= span * self.problem_.v0[i];
+        shifted[i] = value;
+      }
       hist->push(shifted);
     }
     void start(const Eigen::VectorXd& y_n, const Eigen::VectorXd& y_n1) {

@@ -83,7 +83,9 @@ double backward_mirror_run(const InitialValueProblem& problem, const IntegratorO
         f_known = &f_tau;
         f_new = &f_tau2;
       }
-      ym = 0.5 * (y_next + y_k);
+      // Plain element loops in this loop (the same roundings as the Eigen expressions, whose
+      // set-up cost more than their work at d = 1).
+      for (Eigen::Index i = 0; i < d; ++i) ym[i] = 0.5 * (y_next[i] + y_k[i]);
       solver.effective_gradient(ym, tau_known, f_known, g);
       // A non-conservative force g(x, v, t) at the physical state of the mirrored cell: its
       // increment x_{N−k} − x_{N−k−1} is delta = y_k − y_{k+1}, and solve() evaluates the new
@@ -93,13 +95,16 @@ double backward_mirror_run(const InitialValueProblem& problem, const IntegratorO
         g -= g_state;
       }
       mass.multiply(delta, c);
-      c -= (h * h) * known;
-      c -= (0.5 * h * h) * g;
-      step = delta;  // predictor
+      for (Eigen::Index i = 0; i < d; ++i) {
+        c[i] = (c[i] - (h * h) * known[i]) - (0.5 * h * h) * g[i];  // c −= …, then c −= …
+        step[i] = delta[i];                                         // predictor
+      }
       const NewtonReport report = solver.solve(y_k, tau_new, c, f_new, step);
       if (report.status != Status::kSuccess) return kNaN;
-      delta = step;
-      y_prev = y_k + delta;
+      for (Eigen::Index i = 0; i < d; ++i) {
+        delta[i] = step[i];
+        y_prev[i] = y_k[i] + delta[i];
+      }
       const std::size_t mirrored = n - kk + 1;  // y_{kk−1} ≈ x_{mirrored}
       while (next_row < rows && steps[next_row] < mirrored) ++next_row;
       if (next_row < rows && steps[next_row] == mirrored) {

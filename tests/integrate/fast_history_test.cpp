@@ -17,11 +17,14 @@
 #include <cstdlib>
 #include <limits>
 #include <random>
+#include <span>
 #include <string>
+#include <string_view>
 #include <unsupported/Eigen/FFT>
 #include <utility>
 #include <vector>
 
+#include "fracvi/core/state_archive.hpp"
 #include "fracvi/fractional/exponential_fit.hpp"
 #include "fracvi/fractional/weights.hpp"
 #include "fracvi/memory/fast_history.hpp"
@@ -409,9 +412,10 @@ TEST(FastHistory, SmallSystemsSumInTheOrderOfLargeOnes) {
   // Below 4 degrees of freedom push() runs each row along its K recursions (fast_history.cpp,
   // push_rows_across_terms) instead of along the rows; it keeps the large-system kernels' order of
   // additions, so a row's sum is bitwise that row's sum in a larger system (the order matters:
-  // interleaved partial sums measured 4× the round-off). d = 1 (contiguous) and 3 (strided) against
-  // the same rows inside d = 8, through the window's filling and 3000 steps of the tail, for K = 29
-  // (a 3000-step fit at the default ε) and K = 63 (10^7 steps at ε = 2.9e-12, the fit of the d = 1
+  // interleaved partial sums measured 4× the round-off). d = 1 (recursions stored interleaved in
+  // blocks of 16, one_row_across_terms) and 3 (strided) against the same rows inside d = 8, through
+  // the window's filling and 3000 steps of the tail, for K = 29 (a 3000-step fit at the default ε)
+  // and K = 63 (10^7 steps at ε = 2.9e-12, the fit of the d = 1
   // run of bench/RESULTS.md): neither a multiple of 4, so the remainder terms are covered.
   const std::size_t n = 3000;
   const Eigen::MatrixXd xs = rough_sequence(static_cast<Eigen::Index>(n), 8, 11u);
@@ -432,6 +436,61 @@ TEST(FastHistory, SmallSystemsSumInTheOrderOfLargeOnes) {
         ASSERT_TRUE((s_small.array() == s_large.head(d).array()).all())
             << "d = " << d << ", K = " << large.terms() << ", k = " << k;
       }
+    }
+  }
+}
+
+// Keeps the values of one record of a saved state.
+class RecordCapture final : public StateArchive {
+ public:
+  explicit RecordCapture(std::string name) : name_(std::move(name)) {}
+  [[nodiscard]] bool loading() const override { return false; }
+  void doubles(std::string_view name, std::span<double> values) override {
+    if (name == name_) values_.assign(values.begin(), values.end());
+  }
+  void count(std::string_view, std::size_t&) override {}
+  [[nodiscard]] const std::vector<double>& values() const { return values_; }
+
+ private:
+  std::string name_;
+  std::vector<double> values_;
+};
+
+TEST(FastHistory, OneDegreeOfFreedomCheckpointsItsRecursionsInOrder) {
+  // At d = 1 the recursions are stored interleaved in blocks of 16 (fast_history.cpp,
+  // one_row_across_terms); the checkpoint record keeps the order Y_0 … Y_{K−1}: the same values
+  // as row 0 of a d = 3 history fed the same row (stored in order; the recursions are the same
+  // operations, so the same bits), and a restored history continues bit for bit. K = 63: three
+  // interleaved blocks and 15 terms after them.
+  const std::size_t n = 400, saved_at = 250;
+  const Eigen::MatrixXd xs = rough_sequence(n, 3, 29u);
+  FastHistory one(1.5, 1, 10'000'000, 2.9e-12), three(1.5, 3, 10'000'000, 2.9e-12);
+  ASSERT_EQ(one.terms(), 63u);
+  FastHistory resumed(1.5, 1, 10'000'000, 2.9e-12);
+  Eigen::VectorXd s(1), s_resumed(1);
+  for (std::size_t k = 0; k < n; ++k) {
+    const Eigen::VectorXd x = xs.col(static_cast<Eigen::Index>(k));
+    if (k == saved_at) {
+      RecordCapture one_record("fast.recursions"), three_record("fast.recursions");
+      one.visit_state(one_record);
+      three.visit_state(three_record);
+      ASSERT_EQ(one_record.values().size(), 63u);
+      for (std::size_t j = 0; j < 63; ++j) {
+        ASSERT_EQ(one_record.values()[j], three_record.values()[3 * j]) << "Y_" << j;
+      }
+      StateWriter writer;
+      one.visit_state(writer);
+      StateReader reader(writer.bytes(), "test state");
+      resumed.visit_state(reader);
+      reader.finish();
+    }
+    one.push(x.head(1));
+    three.push(x);
+    one.sum(s);
+    if (k >= saved_at) {
+      resumed.push(x.head(1));
+      resumed.sum(s_resumed);
+      ASSERT_EQ(s(0), s_resumed(0)) << "k = " << k;
     }
   }
 }
