@@ -68,10 +68,10 @@ FRACVI_HOT_KERNEL
 void recursion_block(const internal::FastHistoryBlock& blk) {
   const Eigen::Index n = blk.rows, terms = blk.terms, stride = blk.state_stride;
   double* const state = blk.state;
+  for (Eigen::Index i = 0; i < n; ++i) blk.tail[i] = 0.0;  // no recursions yet: the tail is 0
   if (terms > 0) {
     double* __restrict tail = blk.tail;
     const double* __restrict x = blk.leaving;
-    for (Eigen::Index i = 0; i < n; ++i) tail[i] = 0.0;
     Eigen::Index j = 0;
     for (; j + 4 <= terms; j += 4) {
       // Four columns of one array: restrict pointers would not vectorise (vectorize.hpp).
@@ -106,46 +106,78 @@ void recursion_block(const internal::FastHistoryBlock& blk) {
   }
 }
 
+// The window's terms are added to the tail oldest first, in groups of four summed pairwise and
+// the remainder one by one (that order keeps the round-off of their cancellation, from O(|x̃|) to
+// O(h^β |x̃|), at that of the sum: a split that added c_0 x̃_k alone at the end measured 2.1× the
+// round-off, 4.8e-17 against 2.3e-17 mean at β = 1.5, and broke the order test of fvi-midpoint).
+// Only the last of these additions involves x̃_k: so the window is split before it —
+// older_window_block adds the columns before newest_start() onto the tail in place, newest_block
+// the last step with x̃_k — and the second thread of a team of two can run the first part one step
+// ahead. One thread runs both in a row: the same additions in the same order.
+Eigen::Index newest_start(Eigen::Index window) {
+  return window % 4 == 0 ? window - 4 : window - 1;
+}
+
 FRACVI_HOT_KERNEL
-void window_block(const internal::FastHistoryBlock& blk) {
+void older_window_block(const internal::FastHistoryBlock& blk) {
+  const Eigen::Index n = blk.rows, older = newest_start(blk.window);
+  double* __restrict sum = blk.tail;
+  const Eigen::Index ld = blk.ring_stride;
+  const double* head = blk.head_reversed;
+  Eigen::Index c = 0;
+  for (; c + 4 <= older; c += 4) {
+    const double* c0 = blk.window_first + c * ld;
+    const double* c1 = blk.window_first + (c + 1) * ld;
+    const double* c2 = blk.window_first + (c + 2) * ld;
+    const double* c3 = blk.window_first + (c + 3) * ld;
+    const double h0 = head[c], h1 = head[c + 1], h2 = head[c + 2], h3 = head[c + 3];
+    FRACVI_INDEPENDENT_ITERATIONS
+    for (Eigen::Index i = 0; i < n; ++i)
+      sum[i] += (h0 * c0[i] + h1 * c1[i]) + (h2 * c2[i] + h3 * c3[i]);
+  }
+  for (; c < older; ++c) {
+    const double* __restrict col = blk.window_first + c * ld;
+    const double weight = head[c];
+    for (Eigen::Index i = 0; i < n; ++i) sum[i] += weight * col[i];
+  }
+}
+
+// x̃_k into the ring (its slot held x̃_{k−n0}, read by the recursions before), and the sum = the
+// tail with the older window + the last addition: the last group of four with x̃_k as its fourth
+// value, or the last remainder term c_0 x̃_k.
+FRACVI_HOT_KERNEL
+void newest_block(const internal::FastHistoryBlock& blk) {
   const Eigen::Index n = blk.rows;
+  const double* __restrict x = blk.entering;
   {
-    const double* __restrict x = blk.entering;
     double* __restrict slot = blk.slot;
     double* __restrict slot_copy = blk.slot_copy;
     for (Eigen::Index i = 0; i < n; ++i) slot[i] = slot_copy[i] = x[i];
   }
-  {
-    double* __restrict sum = blk.sum;
-    const double* __restrict tail = blk.tail;
-    for (Eigen::Index i = 0; i < n; ++i) sum[i] = tail[i];
-    const Eigen::Index ld = blk.ring_stride;
-    const double* head = blk.head_reversed;
-    Eigen::Index c = 0;
-    for (; c + 4 <= blk.window; c += 4) {
-      const double* c0 = blk.window_first + c * ld;
-      const double* c1 = blk.window_first + (c + 1) * ld;
-      const double* c2 = blk.window_first + (c + 2) * ld;
-      const double* c3 = blk.window_first + (c + 3) * ld;
-      const double h0 = head[c], h1 = head[c + 1], h2 = head[c + 2], h3 = head[c + 3];
-      FRACVI_INDEPENDENT_ITERATIONS
-      for (Eigen::Index i = 0; i < n; ++i)
-        sum[i] += (h0 * c0[i] + h1 * c1[i]) + (h2 * c2[i] + h3 * c3[i]);
-    }
-    for (; c < blk.window; ++c) {
-      const double* __restrict col = blk.window_first + c * ld;
-      const double weight = head[c];
-      for (Eigen::Index i = 0; i < n; ++i) sum[i] += weight * col[i];
-    }
+  double* __restrict sum = blk.sum;
+  const double* __restrict partial = blk.tail;
+  const Eigen::Index c = newest_start(blk.window), ld = blk.ring_stride;
+  const double* head = blk.head_reversed;
+  if (blk.window - c == 4) {
+    const double* __restrict c0 = blk.window_first + c * ld;
+    const double* __restrict c1 = blk.window_first + (c + 1) * ld;
+    const double* __restrict c2 = blk.window_first + (c + 2) * ld;
+    const double h0 = head[c], h1 = head[c + 1], h2 = head[c + 2], h3 = head[c + 3];
+    FRACVI_INDEPENDENT_ITERATIONS
+    for (Eigen::Index i = 0; i < n; ++i)
+      sum[i] = partial[i] + ((h0 * c0[i] + h1 * c1[i]) + (h2 * c2[i] + h3 * x[i]));
+  } else {
+    const double weight = head[c];
+    for (Eigen::Index i = 0; i < n; ++i) sum[i] = partial[i] + weight * x[i];
   }
 }
 
 // The same update for a system of fewer than kAcrossTermsBelow degrees of freedom: along the
 // degrees of freedom there is nothing to vectorise (at d = 1 recursion_block's loops run one
 // iteration per recursion: ≈ 30 % of a d = 1 step, bench/RESULTS.md), so each row runs along its K
-// recursions instead (the four new Y_j of a group in one vector). The additions keep
-// recursion_block's and window_block's order exactly — groups of four summed pairwise, then into
-// the tail in ascending j; the window likewise onto the tail — so a row's sum is bit for bit that
+// recursions instead (the four new Y_j of a group in one vector). The additions keep the kernels'
+// order exactly — groups of four summed pairwise, then into the tail in ascending j; the window
+// likewise onto the tail — so a row's sum is bit for bit that
 // of the same row inside a larger system (tested for K = 29 … 63). That order matters: the window's
 // terms cancel from O(|x̃|) to O(h^β |x̃|), and eight interleaved partial sums measured 4× the
 // round-off of the sum (mean |Ŝ − S| 9e-17 against 2.3e-17, d = 1, N = 10^5, ε = 1e-13, against the
@@ -292,9 +324,11 @@ class FastHistory::AheadThread {
   AheadThread(const AheadThread&) = delete;
   AheadThread& operator=(const AheadThread&) = delete;
 
-  /// Starts the recursions with x̃ from ring column `leaving_slot`.
-  void post(Eigen::Index leaving_slot) {
+  /// Starts the next push's recursions (x̃ from ring column `leaving_slot`) and older window (from
+  /// column `first`).
+  void post(Eigen::Index leaving_slot, Eigen::Index first) {
     slot_ = leaving_slot;
+    first_ = first;
     job_.store(kWork, std::memory_order_release);
     job_.notify_one();
   }
@@ -333,14 +367,14 @@ class FastHistory::AheadThread {
   void serve() {
     for (;;) {
       if (await_other_than(kIdle) == kStop) return;
-      history_.recursions(slot_);
+      history_.run_ahead(slot_, first_);
       job_.store(kIdle, std::memory_order_release);
       job_.notify_one();
     }
   }
 
   FastHistory& history_;
-  Eigen::Index slot_ = 0;
+  Eigen::Index slot_ = 0, first_ = 0;
   mutable std::atomic<int> job_{kIdle};
   std::thread worker_;  // last: it starts serving once the members above exist
 };
@@ -406,11 +440,13 @@ internal::FastHistoryBlock FastHistory::block(Eigen::Index b, Eigen::Index n, Ei
           head_reversed_.data()};
 }
 
-void FastHistory::recursions(Eigen::Index leaving_slot) {
+void FastHistory::run_ahead(Eigen::Index leaving_slot, Eigen::Index first) {
   const Eigen::Index d = ring_.rows(), terms = state_.cols();
   for (Eigen::Index b = 0; b < d; b += kBlock) {
     const Eigen::Index n = std::min(kBlock, d - b);
-    recursion_block(block(b, n, terms, leaving_slot, 0, nullptr));
+    const internal::FastHistoryBlock rows = block(b, n, terms, leaving_slot, first, nullptr);
+    recursion_block(rows);
+    older_window_block(rows);
   }
 }
 
@@ -451,8 +487,11 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
       if (small && !ahead_) {
         push_rows_across_terms(rows);
       } else {
-        recursion_block(rows);
-        window_block(rows);
+        if (!ahead_) {
+          recursion_block(rows);
+          older_window_block(rows);
+        }
+        newest_block(rows);
       }
     }
   };
@@ -468,7 +507,8 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   ahead_ = false;
   ++size_;
   if (ahead_thread_ && threads > 1 && size_ >= n0 && size_ < capacity_) {
-    ahead_thread_->post(static_cast<Eigen::Index>(size_ % n0));
+    ahead_thread_->post(static_cast<Eigen::Index>(size_ % n0),
+                        static_cast<Eigen::Index>((size_ + 1) % n0));
     ahead_ = true;
   }
   if (team_.measuring()) {

@@ -19,12 +19,14 @@
 // contiguous columns. Neither allocates nor throws; all storage is sized at construction.
 //
 // Recursions one step ahead (a team of two threads). The recursions of push k use x̃_{k−n0}, known
-// since push k − n0; only the window needs x̃_k. So with two threads the second one runs push k+1's
-// recursions and tail while the caller computes the rest of step k+1, and push k+1 only waits for
-// them and adds the window: the history's bulk (K of its K + n0 multiply–adds per degree of
-// freedom) leaves the caller's path instead of being split with it (the rest of a step is serial:
-// at d = 10^4 a split history allowed ≤ 1.3×, bench/RESULTS.md). The operations and their order are
-// those of the one-thread push, so the sums are bit for bit the same.
+// since push k − n0, and the window's older values are known since push k − 1; only the window's
+// last addition (its last group of four, whose fourth value is x̃_k) needs x̃_k. So with two threads
+// the second one forms push k+1's recursions, tail and the window but for that last addition while
+// the caller computes the rest of step k+1, and push k+1 only waits for them and makes the last
+// addition: nearly the whole history leaves the caller's path instead of being split with it (the
+// rest of a step is serial: at d = 10^4 a split history allowed ≤ 1.3×, bench/RESULTS.md). The
+// operations and their order are those of the one-thread push, so the sums are bit for bit the
+// same.
 #pragma once
 
 #include <Eigen/Dense>
@@ -100,12 +102,14 @@ class FastHistory final : public History {
   Eigen::ArrayXd decay_;           // e^{−λ_j}
   Eigen::VectorXd weights_;        // w_j
   Eigen::ArrayXXd state_;          // d × K; column j holds Y_j (all degrees of freedom)
-  Eigen::VectorXd tail_;           // Σ_j w_j Y_j (d), updated by push()
-  Eigen::VectorXd sum_;            // the whole sum after the last push (d)
+  // Σ_j w_j Y_j plus the window's terms before its last addition (d): the sum but for the terms
+  // with x̃_k (fast_history.cpp, newest_start).
+  Eigen::VectorXd tail_;
+  Eigen::VectorXd sum_;  // the whole sum after the last push (d)
   std::size_t size_ = 0;
   internal::TeamChooser team_;  // threads per push: measured (threads = 0) or as set
-  // Y_j and tail_ already hold the recursions of the next push (posted to the second thread, or
-  // restored from a checkpoint taken while they were).
+  // Y_j and tail_ already hold the next push's recursions and window but for its last addition
+  // (posted to the second thread, or restored from a checkpoint taken while they were).
   bool ahead_ = false;
   class AheadThread;  // the second thread of a team of two (fast_history.cpp)
   std::unique_ptr<AheadThread> ahead_thread_;
@@ -115,8 +119,10 @@ class FastHistory final : public History {
   // window from column `first`, the new value `entering` (null: the recursions alone).
   internal::FastHistoryBlock block(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
                                    Eigen::Index slot, Eigen::Index first, const double* entering);
-  void recursions(Eigen::Index leaving_slot);  // Y_j ← e^{−λ_j} Y_j + x̃, tail_ (all rows)
-  void finish_ahead() const;                   // waits for recursions in flight
+  // The next push's recursions with x̃ from ring column `leaving_slot`, and its tail plus the
+  // window's terms before the last addition, from column `first` on, into tail_ (all rows).
+  void run_ahead(Eigen::Index leaving_slot, Eigen::Index first);
+  void finish_ahead() const;  // waits for recursions in flight
 };
 
 /// Multiply–adds per step ((K + n0)·d: the recursions and the window) from which FastHistory
