@@ -77,9 +77,10 @@ class FastHistory final : public History {
   [[nodiscard]] ConvolutionQuadrature quadrature() const override {
     return {fit_->scheme, fit_->order, fit_->lag};
   }
-  /// OpenMP threads for push() and sum() (0 = OpenMP's default). They split the degrees of
-  /// freedom; below kParallelWork multiply–adds per step one thread does everything (a parallel
-  /// region costs about a microsecond).
+  /// Threads for push() (0 = OpenMP's default, measured against one; see TeamChooser). A team of
+  /// two runs the next push ahead on its second thread (above); a larger team splits the degrees
+  /// of freedom over OpenMP threads. Below kParallelWork multiply–adds per step one thread does
+  /// everything (a parallel region costs about a microsecond).
   void set_threads(int threads) override;
   /// The window (ring), the K recursions Y_j, the tail and the last sum.
   void visit_state(StateArchive& archive) override;
