@@ -470,8 +470,15 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   // they were run ahead; (2) x̃_k enters the ring; (3) the sum = window · exact weights + tail,
   // returned by sum(). Y_j is column j of the d × K state, so the recursions run along the degrees
   // of freedom (long contiguous vectors).
-  const bool small = d < kAcrossTermsBelow;
   const double* entering = x_tilde.data();
+  if (d < kAcrossTermsBelow) {
+    // Far below kParallelWork: one block on this thread, without the team's bookkeeping (a third
+    // of a d = 1 push's instructions went there, callgrind); never run ahead (no second thread,
+    // and visit_state refuses a small system's checkpoint that says so).
+    push_rows_across_terms(block(0, d, recurse ? terms : 0, slot, first, entering));
+    ++size_;
+    return;
+  }
   // The pushes before the window is full skip the recursions: the thread choice measures again.
   if (size_ == n0) team_.restart();
   const int threads = team_.next();
@@ -484,26 +491,16 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
       const Eigen::Index n = std::min(kBlock, hi - b);
       const internal::FastHistoryBlock rows =
           block(b, n, run_recursions ? terms : 0, slot, first, entering);
-      if (small && !ahead_) {
-        push_rows_across_terms(rows);
-      } else {
-        if (!ahead_) {
-          recursion_block(rows);
-          older_window_block(rows);
-        }
-        newest_block(rows);
+      if (!ahead_) {
+        recursion_block(rows);
+        older_window_block(rows);
       }
+      newest_block(rows);
     }
   };
-  if (small) {
-    // Far below kParallelWork: one block on this thread, without the team's bookkeeping (a third
-    // of a d = 1 push's instructions went there, callgrind).
-    update(0, d);
-  } else {
-    // A team of two runs the recursions ahead (the caller only adds the window); a larger team
-    // splits the rows.
-    internal::for_blocks(d, ahead_thread_ ? 1 : threads, update);
-  }
+  // A team of two runs the next push ahead (the caller only makes the window's last addition); a
+  // larger team splits the rows.
+  internal::for_blocks(d, ahead_thread_ ? 1 : threads, update);
   ahead_ = false;
   ++size_;
   if (ahead_thread_ && threads > 1 && size_ >= n0 && size_ < capacity_) {
@@ -562,8 +559,9 @@ void FastHistory::visit_state(StateArchive& archive) {
   archive.dense("fast.sum", sum_);
   // Whether the recursions and the tail already include the next push's x̃ (run ahead).
   archive.flag("fast.ahead", ahead_);
-  if (ahead_ && (size_ < static_cast<std::size_t>(window_) || size_ >= capacity_)) {
-    throw CheckpointError("checkpoint record 'fast.ahead' is set where no push recurses");
+  if (ahead_ && (size_ < static_cast<std::size_t>(window_) || size_ >= capacity_ ||
+                 ring_.rows() < kAcrossTermsBelow)) {
+    throw CheckpointError("checkpoint record 'fast.ahead' is set where no push runs ahead");
   }
 }
 

@@ -162,15 +162,29 @@ TEST(ErrorEstimate, WithinAFactorThreeOfTheTrueError) {
   }
 }
 
+// fvi-lobatto3 on the Caputo oscillator with 2α = 1.5, N = 4000 on [0, 5], no mirror run: its
+// error peaks at step 1, so the initial layer's estimate decides.
+struct InitialLayerCase {
+  test::LinearOscillator oscillator = test::fractional_oscillator(1.5, Convention::kCaputo);
+  InitialValueProblem problem =
+      test::oscillator_problem(oscillator, Convention::kCaputo, 4000, 5.0);
+  Method method = *parse_method("fvi-lobatto3");
+  IntegratorOptions options = without_mirror();
+  static IntegratorOptions without_mirror() {
+    IntegratorOptions o;
+    o.mirror = false;
+    return o;
+  }
+};
+
 // The initial layer decides for fvi-lobatto3 at 2α = 1.5: the true error peaks at step 1, which
 // the N/2 run does not share; over the shared nodes alone the estimate was 0.39 of the truth.
 TEST(ErrorEstimate, TheFirstStepsOfAFractionalRunAreEstimated) {
-  const test::LinearOscillator caputo15 = test::fractional_oscillator(1.5, Convention::kCaputo);
-  const InitialValueProblem problem =
-      test::oscillator_problem(caputo15, Convention::kCaputo, 4000, 5.0);
-  const Method method = *parse_method("fvi-lobatto3");
-  IntegratorOptions options;
-  options.mirror = false;
+  InitialLayerCase c;
+  const test::LinearOscillator& caputo15 = c.oscillator;
+  const InitialValueProblem& problem = c.problem;
+  const Method& method = c.method;
+  IntegratorOptions options = c.options;
   Solution sol = integrate(problem, method, options);
   ASSERT_TRUE(sol.ok()) << sol.message;
   estimate_error(problem, method, options, sol);
@@ -215,12 +229,10 @@ TEST(ErrorEstimate, NoneWithoutASuccessfulRunOrWhenNotRequested) {
 // same note (here the initial layer's); a run that did not succeed gets the sequential note, and
 // an estimate never finished (the main run threw) stops its companions and returns.
 TEST(ErrorEstimate, ConcurrentCompanionsGiveTheSequentialEstimate) {
-  const test::LinearOscillator caputo15 = test::fractional_oscillator(1.5, Convention::kCaputo);
-  const InitialValueProblem problem =
-      test::oscillator_problem(caputo15, Convention::kCaputo, 4000, 5.0);
-  const Method method = *parse_method("fvi-lobatto3");
-  IntegratorOptions options;
-  options.mirror = false;
+  InitialLayerCase c;
+  const InitialValueProblem& problem = c.problem;
+  const Method& method = c.method;
+  IntegratorOptions options = c.options;
   options.save_every = 8;
   ASSERT_TRUE(ConcurrentErrorEstimate::applies(problem, options) ||
               std::thread::hardware_concurrency() < 2);
