@@ -270,7 +270,8 @@ void CqMidpointStepper::visit_state(StateArchive& archive) {
   // Newton's predictor is the previous increment Δ_{k−1}: it changes the iterates, hence the
   // last bits of a nonlinear step.
   archive.dense("cq_midpoint.increment", dx_);
-  archive.dense("cq_midpoint.x1", x_first_);  // the mirror run starts from x_0, x_1
+  newton_.visit_state(archive, "cq_midpoint.newton");  // and Newton's kept Jacobian
+  archive.dense("cq_midpoint.x1", x_first_);           // the mirror run starts from x_0, x_1
   archive.number("cq_midpoint.fv", fv_);
   archive.number("cq_midpoint.fw", fw_);
   archive.number("cq_midpoint.work", work_);

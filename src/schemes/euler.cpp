@@ -97,6 +97,7 @@ class EulerStepper final : public Stepper {
     archive.dense("euler.p", p_);
     archive.number("euler.work", work_);
     archive.number("euler.supplied", supplied_);
+    newton_.visit_state(archive, "euler.newton");  // its kept Jacobian (the iterates' last bits)
     external_.visit_state(archive);
     archive.optional("euler.history", history_.get());
   }

@@ -113,6 +113,7 @@ class TrapezoidalMidpointStepper final : public Stepper {
     archive.dense("fvi_midpoint.g_tilde", g_tilde_);          // G̃_{k−1}
     archive.dense("fvi_midpoint.g_poly_prev", g_poly_prev_);  // G^P_{k−1}
     archive.dense("fvi_midpoint.increment", dx_);             // Newton's predictor Δ_{k−1}
+    newton_.visit_state(archive, "fvi_midpoint.newton");      // its kept Jacobian
     archive.dense("fvi_midpoint.x1", x_first_);               // the mirror run starts from x_0, x_1
     archive.number("fvi_midpoint.work", work_);
     archive.number("fvi_midpoint.supplied", supplied_);

@@ -89,8 +89,9 @@ class LdaMidpointStepper final : public Stepper {
     archive.dense("lda_midpoint.x", x_cur_);
     archive.dense("lda_midpoint.v", v_cur_);
     archive.dense("lda_midpoint.p", p_);
-    archive.dense("lda_midpoint.u", u_);           // x̃_k, the memory's last value
-    archive.dense("lda_midpoint.increment", dx_);  // Newton's predictor Δ_{k−1}
+    archive.dense("lda_midpoint.u", u_);                  // x̃_k, the memory's last value
+    archive.dense("lda_midpoint.increment", dx_);         // Newton's predictor Δ_{k−1}
+    newton_.visit_state(archive, "lda_midpoint.newton");  // its kept Jacobian
     archive.number("lda_midpoint.work", work_);
     archive.number("lda_midpoint.supplied", supplied_);
     archive.optional("lda_midpoint.memory", memory_.get());

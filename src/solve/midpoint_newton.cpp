@@ -30,20 +30,44 @@ LinearSolver resolve(LinearSolver solver, const ModelMatrix& A, const Potential*
 // Simplified Newton (MidpointNewton::solve) keeps the factorisation while each correction is at
 // most this fraction of the previous one.
 constexpr double kKeptFactorContraction = 0.25;
+// … and carries it into the next call (the next step) after a call that converged at its second
+// correction or earlier, that correction at most half the tolerance: the next step, whose state
+// is O(h) away, is then expected to converge at its second correction with the same J, as full
+// Newton would, without a factorisation. When a carried J does not (the state moves too fast for
+// it), J is formed afresh for the next kCarryBackoff… calls, a wait that doubles with every miss
+// and is reset by a hit: a carry that keeps missing trades one factorisation for a correction
+// (its gradient and solve), which is a loss for small systems. Measured on
+// examples/fput_chain.toml with fvi-gl (d = 50, 6000 steps; full Newton 12 000 corrections):
+// carrying whenever the corrections contracted by 100× took 20 948, carrying after every fast call
+// without the wait 14 962 (every other step a miss) and 0.1–0.12 s of stepping against 0.08–0.10 s.
+constexpr double kCarriedFactorMargin = 0.5;
+constexpr std::size_t kMaxCarryBackoff = 64;
 
-// increment −= δ; returns max|δ_i| and clears `finite` when some updated entry is not finite.
-double apply_correction(const Eigen::VectorXd& delta, Eigen::Ref<Eigen::VectorXd> increment,
-                        bool& finite) {
-  double correction = 0.0;
-  bool all_finite = true;
+// The update increment −= δ and what the iteration needs of it, in one pass (each quantity with
+// the roundings of its own pass: the max is exact, the midpoint is a + 0.5·Δ element by element).
+struct Correction {
+  double size = 0.0;   // max|δ_i|
+  double scale = 0.0;  // max|a_i + Δ_i| (kNext only)
+  bool finite = true;  // every updated Δ_i finite
+};
+// kNext: also the next iterate's midpoint a + Δ/2 into `mid` and the scale of the convergence
+// test (a nonlinear step; a linear one ends after this correction).
+template <bool kNext>
+Correction apply_correction(const Eigen::VectorXd& delta,
+                            const Eigen::Ref<const Eigen::VectorXd>& a,
+                            Eigen::Ref<Eigen::VectorXd> increment, Eigen::VectorXd& mid) {
+  Correction c;
   for (Eigen::Index i = 0; i < delta.size(); ++i) {
     const double updated = increment[i] - delta[i];
     increment[i] = updated;
-    correction = std::max(correction, std::abs(delta[i]));
-    all_finite &= std::isfinite(updated);
+    c.size = std::max(c.size, std::abs(delta[i]));
+    c.finite &= std::isfinite(updated);
+    if constexpr (kNext) {
+      c.scale = std::max(c.scale, std::abs(a[i] + updated));
+      mid[i] = a[i] + 0.5 * updated;
+    }
   }
-  finite = all_finite;
-  return correction;
+  return c;
 }
 
 }  // namespace
@@ -108,6 +132,11 @@ MidpointNewton::MidpointNewton(ModelMatrix A, double h, const Potential* potenti
     }
     factor_ = std::make_unique<SymmetricFactor>(std::move(pattern), backend_);
   }
+  factored_mid_.setZero(d);
+  if (A_.is_diagonal()) {
+    a_diagonal_.resize(d);
+    for (Eigen::Index i = 0; i < d; ++i) a_diagonal_[i] = A_.coeff(i, i);
+  }
   if (linear_) {
     mid_.setZero();
     constant_factor_ok_ = factor_jacobian(t_hessian);
@@ -115,6 +144,7 @@ MidpointNewton::MidpointNewton(ModelMatrix A, double h, const Potential* potenti
 }
 
 bool MidpointNewton::factor_jacobian(double tau) {
+  ++factorizations_;
   if (backend_ == LinearSolver::kDense) {
     if (potential_ != nullptr) potential_->hessian(mid_, tau, hessian_);
     jacobian_ = A_.dense();
@@ -142,7 +172,50 @@ bool MidpointNewton::factor_jacobian(double tau) {
     for (std::size_t e = 0; e < hessian_at_.size(); ++e)
       j[hessian_at_[e]] += quarter_h2_ * hessian_values_[e];
   }
-  return factor_->factor();
+  const bool factored = factor_->factor();
+  if (!linear_) {
+    factored_mid_ = mid_;
+    factored_time_ = tau;
+  }
+  if (!factored) carry_ = false;
+  return factored;
+}
+
+void MidpointNewton::visit_state(StateArchive& archive, std::string_view prefix) {
+  const std::string name(prefix);
+  archive.flag(name + ".carry", carry_);
+  archive.dense(name + ".factored_mid", factored_mid_);
+  archive.number(name + ".factored_time", factored_time_);
+  archive.count(name + ".carry_wait", carry_wait_);
+  archive.count(name + ".carry_backoff", carry_backoff_);
+  // Only the structured backends carry J between calls (a linear J is the constructor's).
+  if (archive.loading() && carry_ && !linear_ && backend_ != LinearSolver::kDense) {
+    mid_ = factored_mid_;
+    if (!factor_jacobian(factored_time_)) {
+      throw CheckpointError("checkpoint record '" + name +
+                            ".factored_mid': the Newton matrix M + (h^2/4) Hess U at the recorded "
+                            "point could not be factored (singular)");
+    }
+    carry_ = true;
+  }
+}
+
+void MidpointNewton::update_carry(bool carried, bool fast) {
+  if (carried) {
+    if (fast) {
+      carry_ = true;
+      carry_backoff_ = 0;
+      return;
+    }
+    carry_backoff_ = std::min(std::max<std::size_t>(1, 2 * carry_backoff_), kMaxCarryBackoff);
+    carry_wait_ = carry_backoff_;
+    carry_ = false;
+  } else if (carry_wait_ > 0) {
+    --carry_wait_;
+    carry_ = false;
+  } else {
+    carry_ = fast;
+  }
 }
 
 void MidpointNewton::effective_gradient(const Eigen::Ref<const Eigen::VectorXd>& z, double tau,
@@ -191,26 +264,45 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
   // contracting iterate leaves, θ/(1 − θ)·‖δ‖, by the tolerance. The dense path
   // (small systems, and every system with a state force, whose Jacobians would be stale) keeps
   // full Newton.
+  //
+  // The kept J also carries over from the previous call, i.e. from the previous step (as
+  // fvi-lobatto keeps its stage matrix): it was formed at the previous step's first iterate, which
+  // differs from this step's by O(h), so the contraction rate is O(h³ ∇³U) — for a smooth motion
+  // two corrections, as with a fresh J, and no factorisation (measured on the β-FPUT chain,
+  // bench/RESULTS.md) — as long as the calls converge that fast (kCarriedFactorMargin).
+  // A J from an earlier step has no observed contraction at the first correction
+  // (θ = ∞ there), so that correction alone is never accepted.
   const bool keep_factor = !linear_ && backend_ != LinearSolver::kDense;
-  bool factor_now = true;
+  const bool kept_from_earlier_call = keep_factor && carry_;
+  carry_ = false;  // until this call converges (update_carry)
+  bool factor_now = !kept_from_earlier_call;
   double previous_correction = std::numeric_limits<double>::infinity();
   // The scale of the convergence test; a linear step has none (one pass fewer per step).
   const double a_norm = linear_ ? 0.0 : a.cwiseAbs().maxCoeff();
+  // The first iterate's midpoint; later ones come out of the correction pass.
+  for (Eigen::Index i = 0; i < mid_.size(); ++i) mid_[i] = a[i] + 0.5 * increment[i];
   for (int it = 1; it <= max_iterations; ++it) {
-    mid_ = a + 0.5 * increment;
     effective_gradient(mid_, tau, forcing_tau, grad_);
     if (state_force_ != nullptr) {
       velocity_ = increment * (1.0 / h_);
       state_force_->jacobians(mid_, velocity_, tau, force_value_, force_dx_, force_dv_);
       grad_ -= force_value_;
     }
-    A_.multiply(increment, residual_);
-    // One pass with its finiteness check, the same roundings as += then −=: (M Δ + (h²/2) g) − c
-    // element by element (a plain loop: Eigen's two passes cost ≈ 30 instructions at d = 1).
+    // One pass with its finiteness check, the same roundings as A Δ, += and −=: (A Δ + (h²/2) g)
+    // − c element by element (a plain loop: Eigen's passes cost ≈ 30 instructions at d = 1); a
+    // diagonal A (the chains' mass) multiplies in the same pass.
     bool residual_finite = true;
-    for (Eigen::Index i = 0; i < residual_.size(); ++i) {
-      residual_[i] = (residual_[i] + half_h2_ * grad_[i]) - c[i];
-      residual_finite &= std::isfinite(residual_[i]);
+    if (a_diagonal_.size() > 0) {
+      for (Eigen::Index i = 0; i < residual_.size(); ++i) {
+        residual_[i] = (a_diagonal_[i] * increment[i] + half_h2_ * grad_[i]) - c[i];
+        residual_finite &= std::isfinite(residual_[i]);
+      }
+    } else {
+      A_.multiply(increment, residual_);
+      for (Eigen::Index i = 0; i < residual_.size(); ++i) {
+        residual_[i] = (residual_[i] + half_h2_ * grad_[i]) - c[i];
+        residual_finite &= std::isfinite(residual_[i]);
+      }
     }
     report.iterations = it;
     if (!residual_finite) {
@@ -237,9 +329,10 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
     } else {
       factor_->solve_in_place(residual_);
     }
-    bool finite = true;
-    report.correction = apply_correction(*delta, increment, finite);
-    if (!finite || !std::isfinite(report.correction)) {
+    const Correction applied = linear_ ? apply_correction<false>(*delta, a, increment, mid_)
+                                       : apply_correction<true>(*delta, a, increment, mid_);
+    report.correction = applied.size;
+    if (!applied.finite || !std::isfinite(report.correction)) {
       report.status = Status::kNonFinite;
       return report;
     }
@@ -247,11 +340,19 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
     if (linear_) return report;
     const double contraction = report.correction / previous_correction;  // 0 at it = 1
     factor_now = !keep_factor || contraction > kKeptFactorContraction;
+    const double observed_contraction =
+        it == 1 && kept_from_earlier_call ? std::numeric_limits<double>::infinity() : contraction;
     previous_correction = report.correction;
-    const double scale = std::max((a + increment).cwiseAbs().maxCoeff(), a_norm);
+    const double scale = std::max(applied.scale, a_norm);
     report.tolerance = options_.absolute_tolerance + options_.relative_tolerance * scale;
     const double roundoff = 4.0 * std::numeric_limits<double>::epsilon() * scale;
-    if (newton_converged(report.correction, report.tolerance, contraction, roundoff)) return report;
+    if (newton_converged(report.correction, report.tolerance, observed_contraction, roundoff)) {
+      if (keep_factor) {
+        update_carry(kept_from_earlier_call,
+                     it <= 2 && report.correction <= kCarriedFactorMargin * report.tolerance);
+      }
+      return report;
+    }
   }
   report.status = Status::kNewtonFailure;
   return report;

@@ -93,13 +93,22 @@ struct Case {
   const char* expected_history;  // what the run used
   ForcingLoad load = ForcingLoad::kPointwise;
   bool state_force = false;  // add a van der Pol-type g(x, v, t) (Lobatto: its stage velocities)
+  // kBanded: Newton keeps its Jacobian from step to step (simplified Newton; the dense path
+  // forms it at every iterate), so the checkpoint must hold where it was formed.
+  LinearSolver linear_solver = LinearSolver::kAuto;
 };
+
+// With 240 steps (h = 1/120) Newton takes about three corrections a step on the pendula, and
+// the banded path then forms J afresh at every step; with 2400 (h = 1/1200) two, and it keeps J
+// from step to step — the state a checkpoint must then carry.
+constexpr std::size_t kKeptJacobianSteps = 2400;
 
 class CheckpointResume : public ::testing::TestWithParam<Case> {};
 
 TEST_P(CheckpointResume, ContinuesBitForBit) {
   const Case c = GetParam();
-  InitialValueProblem p = pendula(c.alpha, 240);
+  InitialValueProblem p =
+      pendula(c.alpha, c.linear_solver == LinearSolver::kBanded ? kKeptJacobianSteps : 240);
   if (c.state_force) {
     p.model.state_force = std::make_shared<const ExpressionForce>(
         2, std::vector<std::string>{"0.5*(1 - x1^2)*v1", "-0.2*x1*v2"});
@@ -109,6 +118,7 @@ TEST_P(CheckpointResume, ContinuesBitForBit) {
   options.history = c.history;
   options.save_every = c.save_every;
   options.load = c.load;
+  options.linear_solver = c.linear_solver;
   const Solution reference = integrate(p, method, options);
   ASSERT_EQ(reference.status, Status::kSuccess) << reference.message;
   EXPECT_EQ(reference.history, c.expected_history);
@@ -156,14 +166,24 @@ INSTANTIATE_TEST_SUITE_P(
         Case{"euler-implicit", 0.25, HistoryKind::kFast, 1, "fast"},
         Case{"lda-midpoint", 0.75, HistoryKind::kDirect, 1, "direct"},
         Case{"lda-midpoint", 0.75, HistoryKind::kFast, 2, "fast", ForcingLoad::kMoments},
-        Case{"conformal-strang", 0.5, HistoryKind::kAuto, 1, "none"}),
+        Case{"conformal-strang", 0.5, HistoryKind::kAuto, 1, "none"},
+        // Newton's Jacobian kept across steps (banded backend, nonlinear U).
+        Case{"fvi-gl", 0.75, HistoryKind::kFast, 1, "fast", ForcingLoad::kPointwise, false,
+             LinearSolver::kBanded},
+        Case{"fvi-midpoint", 0.75, HistoryKind::kDirect, 3, "direct", ForcingLoad::kPointwise,
+             false, LinearSolver::kBanded},
+        Case{"euler-implicit", 0.25, HistoryKind::kFast, 1, "fast", ForcingLoad::kPointwise, false,
+             LinearSolver::kBanded},
+        Case{"lda-midpoint", 0.75, HistoryKind::kFast, 2, "fast", ForcingLoad::kMoments, false,
+             LinearSolver::kBanded}),
     [](const auto& param_info) {
       std::string name = std::string(param_info.param.scheme) + "_" +
                          std::string(to_string(param_info.param.history)) + "_alpha" +
                          std::to_string(static_cast<int>(param_info.param.alpha * 100)) + "_every" +
                          std::to_string(param_info.param.save_every) +
                          (param_info.param.load == ForcingLoad::kMoments ? "_moments" : "") +
-                         (param_info.param.state_force ? "_state_force" : "");
+                         (param_info.param.state_force ? "_state_force" : "") +
+                         (param_info.param.linear_solver == LinearSolver::kBanded ? "_banded" : "");
       for (char& ch : name)
         if (ch == '-') ch = '_';
       return name;
@@ -188,6 +208,30 @@ TEST(CheckpointResume, AnAlteredAccumulatorChangesTheRun) {
   // Unchanged, it is identical (the same call path).
   expect_same_run(resumed_from(state_after(p, fvi_gl(), options, 97), p, fvi_gl(), options),
                   reference);
+}
+
+// Negative control for Newton's kept Jacobian: restored as "not carried" (the flag's byte
+// altered), the resumed run forms J at its own first iterate instead of keeping the saved one, and
+// its iterates differ in the last bits — the record is part of the state.
+TEST(CheckpointResume, AForgottenKeptJacobianChangesTheRun) {
+  const InitialValueProblem p = pendula(0.75, kKeptJacobianSteps);
+  IntegratorOptions options;
+  options.history = HistoryKind::kFast;
+  options.linear_solver = LinearSolver::kBanded;
+  const Solution reference = integrate(p, fvi_gl(), options);
+  ASSERT_EQ(reference.status, Status::kSuccess) << reference.message;
+  std::string state = state_after(p, fvi_gl(), options, 97);
+  const std::string name = "cq_midpoint.newton.carry";
+  const std::size_t at = state.find(name);  // the first: ".carry_wait" comes after it
+  ASSERT_NE(at, std::string::npos);
+  // Record layout (state_archive.cpp): name, type byte, u64 length, payload (a u64 count, 0 or 1,
+  // little-endian on x86-64).
+  const std::size_t payload = at + name.size() + 1 + sizeof(std::uint64_t);
+  ASSERT_EQ(state[payload], 1);
+  state[payload] = 0;
+  const Solution altered = resumed_from(state, p, fvi_gl(), options);
+  ASSERT_EQ(altered.status, Status::kSuccess) << altered.message;
+  EXPECT_FALSE(same_bits(altered.x, reference.x));
 }
 
 TEST(CheckpointResume, EverySchemeWithoutCheckpointsRefusesAndTheOthersSave) {

@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <span>
 #include <vector>
@@ -39,14 +41,32 @@ TEST(NewtonConverged, SlowContractionMustAlsoBoundTheErrorLeft) {
   EXPECT_TRUE(newton_converged(1e-16, 1e-12, 1.3, 1e-16));
 }
 
+// A time-independent potential of d uncoupled sites: its Hessian pattern is the diagonal, so the
+// banded path can factor its Newton matrix.
+class DiagonalHessianPotential : public Potential {
+ public:
+  explicit DiagonalHessianPotential(Eigen::Index d) : d_(d) {}
+  [[nodiscard]] Eigen::Index dimension() const override { return d_; }
+  [[nodiscard]] bool is_time_dependent() const override { return false; }
+  [[nodiscard]] bool has_sparse_hessian() const override { return true; }
+  [[nodiscard]] std::vector<HessianEntry> hessian_pattern() const override {
+    std::vector<HessianEntry> pattern;
+    for (Eigen::Index i = 0; i < d_; ++i) pattern.push_back({i, i});
+    return pattern;
+  }
+
+ protected:
+  Eigen::Index d_;
+};
+
 // U = ½ k Σ x_i², whose hessian() reports s·k instead of k: the Newton matrix is then off by a
 // known factor, and the iteration contracts linearly at θ = |1 − J/Ĵ| with J = A + (h²/4) k the
 // true and Ĵ = A + (h²/4) s k the used matrix — what a kept (stale) factorisation does, with a
-// rate chosen by the test. Diagonal Hessian pattern, so the banded path can factor it too.
-class MisreportedHessian final : public Potential {
+// rate chosen by the test.
+class MisreportedHessian final : public DiagonalHessianPotential {
  public:
-  MisreportedHessian(Eigen::Index d, double k, double s) : d_(d), k_(k), s_(s) {}
-  [[nodiscard]] Eigen::Index dimension() const override { return d_; }
+  MisreportedHessian(Eigen::Index d, double k, double s)
+      : DiagonalHessianPotential(d), k_(k), s_(s) {}
   [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double) const override {
     return 0.5 * k_ * x.squaredNorm();
   }
@@ -58,20 +78,12 @@ class MisreportedHessian final : public Potential {
                Eigen::Ref<Eigen::MatrixXd> H) const override {
     H = (s_ * k_) * Eigen::MatrixXd::Identity(d_, d_);
   }
-  [[nodiscard]] bool is_time_dependent() const override { return false; }
-  [[nodiscard]] bool has_sparse_hessian() const override { return true; }
-  [[nodiscard]] std::vector<HessianEntry> hessian_pattern() const override {
-    std::vector<HessianEntry> pattern;
-    for (Eigen::Index i = 0; i < d_; ++i) pattern.push_back({i, i});
-    return pattern;
-  }
   void hessian_values(const Eigen::Ref<const Eigen::VectorXd>&, double,
                       std::span<double> values) const override {
     for (double& v : values) v = s_ * k_;
   }
 
  private:
-  Eigen::Index d_;
   double k_, s_;
 };
 
@@ -105,6 +117,103 @@ TEST(MidpointNewtonStopping, SlowContractionLeavesAtMostTheToleranceDense) {
 
 TEST(MidpointNewtonStopping, SlowContractionLeavesAtMostTheToleranceBanded) {
   expect_error_within_tolerance(8, LinearSolver::kBanded);
+}
+
+// U = Σ (k/2) x_i² + (b/4) x_i⁴ with its true (diagonal) Hessian: a nonlinear potential whose
+// Newton matrix the banded path may keep from call to call.
+class QuarticSites final : public DiagonalHessianPotential {
+ public:
+  QuarticSites(Eigen::Index d, double k, double b) : DiagonalHessianPotential(d), k_(k), b_(b) {}
+  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double) const override {
+    return (0.5 * k_ * x.array().square() + 0.25 * b_ * x.array().pow(4)).sum();
+  }
+  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double,
+                Eigen::Ref<Eigen::VectorXd> g) const override {
+    g = (k_ * x.array() + b_ * x.array().cube()).matrix();
+  }
+  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double,
+               Eigen::Ref<Eigen::MatrixXd> H) const override {
+    H = (k_ + 3.0 * b_ * x.array().square()).matrix().asDiagonal();
+  }
+  void hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double,
+                      std::span<double> values) const override {
+    for (Eigen::Index i = 0; i < d_; ++i)
+      values[static_cast<std::size_t>(i)] = k_ + 3.0 * b_ * x[i] * x[i];
+  }
+
+ private:
+  double k_, b_;
+};
+
+// A sequence of solves along the motion a(t) = A sin(t + 0.3 i) (a step of dt per call) by the
+// banded path, which may keep J from call to call, and by the dense path (full Newton: J formed
+// at every iterate), from the same predictor: full Newton's previous increment.
+struct KeptRun {
+  std::size_t factorizations = 0;  // the banded path's
+  double worst = 0.0;              // max |Δ_banded − Δ_dense| / tolerance
+  int min_iterations = 1000;       // the banded path's, after the first call
+  int iterations = 0, full_iterations = 0;
+};
+
+KeptRun run_kept(double h, double dt, double amplitude, int calls) {
+  const Eigen::Index d = 16;
+  const QuarticSites potential(d, 1.0, 4.0);
+  NewtonOptions options;  // the defaults: rtol 1e-12
+  internal::MidpointNewton kept(ModelMatrix::identity(d), h, &potential, options, 0.0,
+                                LinearSolver::kBanded);
+  internal::MidpointNewton full(ModelMatrix::identity(d), h, &potential, options, 0.0,
+                                LinearSolver::kDense);
+  EXPECT_EQ(kept.linear_solver(), LinearSolver::kBanded);
+  EXPECT_EQ(full.linear_solver(), LinearSolver::kDense);
+  Eigen::VectorXd a(d), c(d), inc_kept(d), inc_full(d);
+  KeptRun run;
+  for (int k = 0; k < calls; ++k) {
+    const double t = dt * k;
+    for (Eigen::Index i = 0; i < d; ++i) {
+      a[i] = amplitude * std::sin(t + 0.3 * static_cast<double>(i));
+      c[i] = h * h * amplitude * std::cos(t + 0.3 * static_cast<double>(i));
+    }
+    // The integrator's predictor, the last increment (the same for both).
+    if (k == 0) inc_full.setConstant(h * 0.1);
+    inc_kept = inc_full;
+    const internal::NewtonReport r = kept.solve(a, t, c, nullptr, inc_kept);
+    const internal::NewtonReport f = full.solve(a, t, c, nullptr, inc_full);
+    EXPECT_EQ(r.status, Status::kSuccess) << "call " << k;
+    EXPECT_EQ(f.status, Status::kSuccess) << "call " << k;
+    run.worst = std::max(run.worst, (inc_kept - inc_full).cwiseAbs().maxCoeff() / r.tolerance);
+    if (k > 0) run.min_iterations = std::min(run.min_iterations, r.iterations);
+    run.iterations += r.iterations;
+    run.full_iterations += f.iterations;
+  }
+  run.factorizations = kept.factorizations();
+  return run;
+}
+
+// Small steps along a slow motion (h = 0.01, the state moving 10× slower than a step's
+// increment: the predictor's error is small): a J kept from the last call contracts by ≈ 1e-5, and
+// the banded path factors in a small fraction of the calls (18 of 200 when written) while taking as
+// many corrections as full Newton (401), every increment within the tolerance of full Newton's.
+TEST(MidpointNewtonKeptJacobian, FactorsRarelyAlongASmoothMotionAndMeetsTheTolerance) {
+  const KeptRun run = run_kept(0.01, 0.001, 0.8, 200);
+  std::printf("h = 0.01: %zu factorisations, %d / %d iterations (banded / dense), worst %.3g\n",
+              run.factorizations, run.iterations, run.full_iterations, run.worst);
+  EXPECT_LE(run.factorizations, 40u);
+  EXPECT_LE(run.worst, 2.0);  // each within its tolerance of the exact increment
+  // A J from an earlier call never stops at its first correction (θ unknown there) …
+  EXPECT_GE(run.min_iterations, 2);
+  // … and here it costs no more corrections than full Newton.
+  EXPECT_LE(run.iterations, run.full_iterations + 10);
+}
+
+// Large steps (h = 0.2: (h²/4)∇²U up to 9 % of J; full Newton takes three corrections a call):
+// no call converges at its second correction, so J is never carried into the next call — one
+// factorisation per call, as before J was carried — and every increment meets the tolerance.
+TEST(MidpointNewtonKeptJacobian, ASlowlyConvergingJacobianIsNotCarriedOver) {
+  const KeptRun run = run_kept(0.2, 0.02, 0.8, 200);
+  std::printf("h = 0.2: %zu factorisations, %d / %d iterations (banded / dense), worst %.3g\n",
+              run.factorizations, run.iterations, run.full_iterations, run.worst);
+  EXPECT_EQ(run.factorizations, 200u);
+  EXPECT_LE(run.worst, 2.0);
 }
 
 }  // namespace

@@ -30,11 +30,13 @@
 
 #include <Eigen/Dense>
 #include <memory>
+#include <string_view>
 #include <utility>
 #include <vector>
 
 #include "fracvi/core/error.hpp"
 #include "fracvi/core/newton_options.hpp"
+#include "fracvi/core/state_archive.hpp"
 #include "fracvi/core/status.hpp"
 #include "fracvi/model/model_matrix.hpp"
 #include "fracvi/model/potential.hpp"
@@ -72,7 +74,9 @@ class MidpointNewton {
 
   /// Solves for the increment Δ, starting from the guess in `increment`. forcing_tau is f(τ) or
   /// null (f ≡ 0). Convergence: ‖δ‖_∞ ≤ atol + rtol · max(‖a + Δ‖_∞, ‖a‖_∞), δ the last
-  /// correction (already applied).
+  /// correction (already applied), and newton_converged()'s bound on a slow contraction.
+  /// On the banded and sparse backends with a nonlinear U, J is kept from call to call (from
+  /// step to step) while the corrections contract fast: see solve()'s comment.
   NewtonReport solve(const Eigen::Ref<const Eigen::VectorXd>& a, double tau,
                      const Eigen::Ref<const Eigen::VectorXd>& c, const Eigen::VectorXd* forcing_tau,
                      Eigen::Ref<Eigen::VectorXd> increment);
@@ -96,9 +100,22 @@ class MidpointNewton {
   /// The factorisation in use: kDense, kBanded or kSparse.
   [[nodiscard]] LinearSolver linear_solver() const { return backend_; }
 
+  /// How many times J has been formed and factored (the constructor's included).
+  [[nodiscard]] std::size_t factorizations() const { return factorizations_; }
+
+  /// The kept Jacobian's point and whether the next call starts from it (a checkpoint's part of
+  /// the solver: it changes the iterates, hence the last bits of a nonlinear step). Records
+  /// `<prefix>.carry`, `.factored_mid`, `.factored_time`, `.carry_wait` and `.carry_backoff`;
+  /// loading forms and factors J at the recorded point again when it is carried.
+  void visit_state(StateArchive& archive, std::string_view prefix);
+
  private:
   // J = A + (h²/4)∇²U(mid, τ) into the dense matrix or the structured factor; false if singular.
   bool factor_jacobian(double tau);
+  // After a converged call on a structured backend: whether the next call starts from this J
+  // (carried: the call started from a carried J; fast: it converged at its second correction or
+  // earlier, well inside the tolerance).
+  void update_carry(bool carried, bool fast);
 
   ModelMatrix A_;
   double half_h2_;     // h²/2
@@ -121,6 +138,15 @@ class MidpointNewton {
   bool constant_factor_ok_ = true;  // linear problems: J factored once in the constructor  //
                                     // potential without a sparse Hessian, forced structured
   Eigen::VectorXd mid_, grad_, residual_, delta_;
+  Eigen::VectorXd a_diagonal_;  // A's diagonal when A is diagonal (empty otherwise)
+  // The kept J of the structured backends (nonlinear U), formed at (factored_mid_,
+  // factored_time_): an earlier iterate, of an earlier step when carry_. A carried J that missed
+  // (update_carry) waits carry_wait_ calls, a wait of carry_backoff_ that doubles per miss.
+  bool carry_ = false;
+  Eigen::VectorXd factored_mid_;
+  double factored_time_ = 0.0;
+  std::size_t carry_wait_ = 0, carry_backoff_ = 0;
+  std::size_t factorizations_ = 0;
   // The state force at the current iterate and its Jacobians (dense path only).
   Eigen::VectorXd velocity_, force_value_;
   Eigen::MatrixXd force_dx_, force_dv_;
