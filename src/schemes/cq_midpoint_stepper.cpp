@@ -1,5 +1,6 @@
 #include "cq_midpoint_stepper.hpp"
 
+#include "fracvi/internal/vectorize.hpp"
 #include "fracvi/schemes/history_budget.hpp"
 #include "mirror_run.hpp"
 #include "power_differences.hpp"
@@ -188,10 +189,15 @@ Status CqMidpointStepper::advance() {
     // expression's set-up costs more than its work at d = 1).
     for (Eigen::Index i = 0; i < d_; ++i) p_minus_[i] = p_minus_[i] * (2.0 / h_) - p_plus_[i];
   }
-  bool finite = true;  // x_{k+1} and its check in one pass
-  for (Eigen::Index i = 0; i < d_; ++i) {
-    x_next_[i] = xk[i] + dx_[i];
-    finite &= std::isfinite(x_next_[i]);
+  bool finite = true;  // x_{k+1} and its check (in one pass for small systems)
+  if (d_ >= kVectorPassesFrom) {
+    x_next_ = xk + dx_;
+    finite = all_finite(x_next_);
+  } else {
+    for (Eigen::Index i = 0; i < d_; ++i) {
+      x_next_[i] = xk[i] + dx_[i];
+      finite &= std::isfinite(x_next_[i]);
+    }
   }
   if (!finite) return fail(Status::kNonFinite, "non-finite position");
 
@@ -247,7 +253,8 @@ Status CqMidpointStepper::advance() {
       supplied_ += du;
     }
   }
-  if (!v_next_.allFinite()) return fail(Status::kNonFinite, "non-finite velocity");
+  if (!(d_ >= kVectorPassesFrom ? all_finite(v_next_) : v_next_.allFinite()))
+    return fail(Status::kNonFinite, "non-finite velocity");
 
   if (k == 0) x_first_ = x_next_;  // the mirror run starts from x_0, x_1
   ++k_;

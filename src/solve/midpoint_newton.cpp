@@ -1,5 +1,7 @@
 #include "fracvi/solve/midpoint_newton.hpp"
 
+#include "fracvi/internal/vectorize.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -44,25 +46,9 @@ constexpr double kCarriedFactorMargin = 0.5;
 constexpr std::size_t kMaxCarryBackoff = 64;
 
 // The per-element passes of an iteration come in two forms with the same operations, hence the
-// same numbers (the maxima are exact): fused element loops for small systems, where an Eigen
-// expression's set-up costs more than its work (≈ 30 instructions a pass at d = 1), and Eigen's
-// vectorised passes from this size on — the fused loops do not vectorise (their max and
-// finiteness reductions), and at d = 1000 ran at ≈ 3 cycles per element, ≈ 20 % of a β-FPUT step.
-constexpr Eigen::Index kVectorPassesFrom = 32;
-
-// max|v_i| and whether every v_i is finite, each one vectorised pass of an expression evaluated
-// lazily (max_abs(a + Δ) allocates nothing). Eigen's fast max may drop a NaN, so finiteness is its
-// own test: Σ 0·v_i is ±0 when every v_i is finite and NaN otherwise (0·∞ = NaN), exactly, in any
-// order. (maxCoeff<PropagateNaN> in one pass measured 2–3× the time of both.)
-template <class Derived>
-double max_abs(const Eigen::MatrixBase<Derived>& v) {
-  return v.size() == 0 ? 0.0 : v.cwiseAbs().maxCoeff();
-}
-template <class Derived>
-bool all_finite(const Eigen::MatrixBase<Derived>& v) {
-  return std::isfinite((v.array() * 0.0).sum());
-}
-
+// same numbers (the maxima are exact): fused element loops for small systems and Eigen's vectorised
+// passes from kVectorPassesFrom on (internal/vectorize.hpp; the fused loops ran at ≈ 3 cycles per
+// element at d = 1000, ≈ 20 % of a β-FPUT step).
 // The update increment −= δ and what the iteration needs of it.
 struct Correction {
   double size = 0.0;   // max|δ_i|

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "fracvi/core/newton_options.hpp"
+#include "fracvi/internal/vectorize.hpp"
 #include "fracvi/model/model_matrix.hpp"
 #include "fracvi/model/potential.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
@@ -58,6 +59,26 @@ class DiagonalHessianPotential : public Potential {
  protected:
   Eigen::Index d_;
 };
+
+// The vectorised reductions of the large-system passes (internal/vectorize.hpp): finiteness must
+// notice one ∞ or NaN anywhere (a fast max may drop a NaN), and the max is exact.
+TEST(VectorisedPasses, AllFiniteNoticesOneBadEntryAnywhereAndMaxAbsIsExact) {
+  for (const Eigen::Index n : {1, 2, 33, 1000, 1001}) {
+    Eigen::VectorXd v = Eigen::VectorXd::LinSpaced(n, -1e300, 3.0);
+    EXPECT_TRUE(internal::all_finite(v)) << n;
+    EXPECT_EQ(internal::max_abs(v), std::abs(v[0])) << n;
+    EXPECT_EQ(internal::max_abs(v + v), 2.0 * std::abs(v[0])) << n;  // a lazy expression
+    for (const double bad : {kInf, -kInf, std::nan("")}) {
+      for (const Eigen::Index at : {Eigen::Index{0}, n / 2, n - 1}) {
+        Eigen::VectorXd w = v;
+        w[at] = bad;
+        EXPECT_FALSE(internal::all_finite(w)) << n << " " << at << " " << bad;
+      }
+    }
+  }
+  EXPECT_TRUE(internal::all_finite(Eigen::VectorXd(0)));
+  EXPECT_EQ(internal::max_abs(Eigen::VectorXd(0)), 0.0);
+}
 
 // U = ½ k Σ x_i², whose hessian() reports s·k instead of k: the Newton matrix is then off by a
 // known factor, and the iteration contracts linearly at θ = |1 − J/Ĵ| with J = A + (h²/4) k the
