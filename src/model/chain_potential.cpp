@@ -30,9 +30,11 @@ namespace {
 // V(r) = ½ k r² + (a/3) r³ + (b/4) r⁴ and its derivatives.
 struct Spring {
   double k, a, b;
-  [[nodiscard]] double energy(double r) const {
-    const double r2 = r * r;
-    return r2 * (0.5 * k + r * (a / 3.0 + 0.25 * b * r));
+  // V(r) = k r²/2 + a r³/3 + b r⁴/4; for a double or an Eigen array expression (one expression,
+  // so that an array's result holds no reference to a local).
+  template <class R>
+  [[nodiscard]] auto energy(const R& r) const {
+    return r * r * (0.5 * k + r * (a / 3.0 + 0.25 * b * r));
   }
   [[nodiscard]] double force(double r) const { return r * (k + r * (a + b * r)); }            // V'
   [[nodiscard]] double stiffness(double r) const { return k + r * (2.0 * a + 3.0 * b * r); }  // V''
@@ -116,18 +118,26 @@ double ChainPotential::value(const Eigen::Ref<const Eigen::VectorXd>& x, double)
   const ChainBoundary boundary = options_.boundary;
   const double c = options_.onsite;
   // Each bond once, as the right bond of its left mass (the fixed chain adds the left wall bond).
+  // The interior's energies as one vectorised sum (Eigen's reduction): a running sum over the
+  // masses is a chain of dependent additions, ≈ 4 cycles a mass (4.5 % of the linear chain's step
+  // at d = 1000 in perf, for an energy evaluated every step).
   return internal::sum_blocks(d, chain_threads(options_), [&](Eigen::Index lo, Eigen::Index hi) {
     double total = 0.0;
-    by_position(
-        lo, hi, d,
-        [&](Eigen::Index i) {
-          const Neighbours n = neighbours(x, i, d, boundary);
-          double e = 0.5 * c * x[i] * x[i];
-          if (n.has_right) e += v.energy(n.right - x[i]);
-          if (i == 0 && boundary == ChainBoundary::kFixed) e += v.energy(x[0]);
-          total += e;
-        },
-        [&](Eigen::Index i) { total += 0.5 * c * x[i] * x[i] + v.energy(x[i + 1] - x[i]); });
+    const auto edge = [&](Eigen::Index i) {
+      const Neighbours n = neighbours(x, i, d, boundary);
+      double e = 0.5 * c * x[i] * x[i];
+      if (n.has_right) e += v.energy(n.right - x[i]);
+      if (i == 0 && boundary == ChainBoundary::kFixed) e += v.energy(x[0]);
+      total += e;
+    };
+    const Eigen::Index first = std::max<Eigen::Index>(lo, 1), last = std::min(hi, d - 1);
+    if (lo == 0) edge(0);
+    if (last > first) {
+      const auto at = x.segment(first, last - first).array();
+      const auto right = x.segment(first + 1, last - first).array();
+      total += (0.5 * c * at.square() + v.energy(right - at)).sum();
+    }
+    if (hi == d && d > 1) edge(d - 1);
     return total;
   });
 }
