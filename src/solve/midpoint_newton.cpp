@@ -33,23 +33,25 @@ LinearSolver resolve(LinearSolver solver, const ModelMatrix& A, const Potential*
 // most this fraction of the previous one.
 constexpr double kKeptFactorContraction = 0.25;
 // … and carries it into the next call (the next step) after a call that converged at its second
-// correction or earlier, that correction at most half the tolerance: the next step, whose state
-// is O(h) away, is then expected to converge at its second correction with the same J, as full
-// Newton would, without a factorisation. When a carried J does not (the state moves too fast for
-// it), J is formed afresh for the next kCarryBackoff… calls, a wait that doubles with every miss
-// and is reset by a hit: a carry that keeps missing trades one factorisation for a correction
-// (its gradient and solve), which is a loss for small systems. Measured on
+// correction or earlier, that correction at most kCarriedFactorMargin × the tolerance: the next
+// step, whose state is O(h) away, is then expected to converge at its second correction with the
+// same J, as full Newton would, without a factorisation. When a carried J needs more (the state
+// moves too fast for it), J is formed afresh for the next 1, 2, 4, … kMaxCarryBackoff calls, the
+// wait doubling with every miss and reset by a hit: a carry that keeps missing trades one
+// factorisation for a correction (its gradient and solve), a loss for small systems. Measured on
 // examples/fput_chain.toml with fvi-gl (d = 50, 6000 steps; full Newton 12 000 corrections):
-// carrying whenever the corrections contracted by 100× took 20 948, carrying after every fast call
-// without the wait 14 962 (every other step a miss) and 0.1–0.12 s of stepping against 0.08–0.10 s.
+// carrying whenever the corrections contracted by 100× took 20 948 corrections, carrying after
+// every fast call without the wait 14 962 (every other step a miss, and slower), with the wait
+// 12 094 (stepping the same within noise); the β-FPUT chain of bench/RESULTS.md factors once in
+// 10^5 steps.
 constexpr double kCarriedFactorMargin = 0.5;
 constexpr std::size_t kMaxCarryBackoff = 64;
 
-// The per-element passes of an iteration come in two forms with the same operations, hence the
-// same numbers (the maxima are exact): fused element loops for small systems and Eigen's vectorised
-// passes from kVectorPassesFrom on (internal/vectorize.hpp; the fused loops ran at ≈ 3 cycles per
-// element at d = 1000, ≈ 20 % of a β-FPUT step).
-// The update increment −= δ and what the iteration needs of it.
+// The update increment −= δ and what the iteration needs of it. The per-element passes of an
+// iteration come in two forms with the same operations, hence the same numbers (the maxima are
+// exact): fused element loops for small systems and Eigen's vectorised passes from
+// kVectorPassesFrom on (internal/vectorize.hpp; the fused loops ran at ≈ 3 cycles per element at
+// d = 1000, ≈ 20 % of a β-FPUT step).
 struct Correction {
   double size = 0.0;   // max|δ_i|
   double scale = 0.0;  // max|a_i + Δ_i| (kNext only)
