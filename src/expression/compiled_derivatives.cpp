@@ -90,6 +90,7 @@ CompiledDerivatives::CompiledDerivatives(const Expression& f, std::vector<std::s
   }
   program_ = std::make_shared<const internal::Program>(
       internal::compile(builder.nodes(), n, data.root, gradient, hessian));
+  tape_variables_ = program_->num_variables;
   workspace_ = make_workspace();
 }
 
@@ -105,13 +106,12 @@ CompiledDerivatives::Workspace CompiledDerivatives::make_workspace() const {
   return ws;
 }
 
-void CompiledDerivatives::check(std::span<const double> values, const Workspace& ws) const {
-  if (values.size() != program_->num_variables)
-    throw std::invalid_argument("CompiledDerivatives: got " + std::to_string(values.size()) +
+void CompiledDerivatives::throw_mismatch(std::size_t values) const {
+  if (values != program_->num_variables)
+    throw std::invalid_argument("CompiledDerivatives: got " + std::to_string(values) +
                                 " values for " + std::to_string(num_variables()) + " variables");
-  if (ws.owner_ != program_.get())
-    throw std::invalid_argument(
-        "CompiledDerivatives: the workspace was not made by this object (make_workspace())");
+  throw std::invalid_argument(
+      "CompiledDerivatives: the workspace was not made by this object (make_workspace())");
 }
 
 double CompiledDerivatives::evaluate(std::span<const double> values, Workspace& ws) const {

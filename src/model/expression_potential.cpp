@@ -44,13 +44,15 @@ ExpressionPotential::ExpressionPotential(Eigen::Index dimension, const std::stri
 
 ExpressionPotential::Scratch& ExpressionPotential::scratch(
     const Eigen::Ref<const Eigen::VectorXd>& x, double t) const {
-  thread_local std::unordered_map<std::uint64_t, Scratch> per_object;
   // The last object's scratch, so that a run's calls (one potential, several per step) skip the
   // hash lookup (≈ 4 % of a d = 1 step, perf). A map keeps the addresses of its elements when it
   // grows, and ids are never reused.
   thread_local std::uint64_t last_id = 0;
   thread_local Scratch* last = nullptr;
   if (last == nullptr || last_id != id_) {
+    // Declared here, not above: a thread_local with a constructor costs a call to its guard on
+    // every pass over its declaration, the plain pointers above only a load.
+    thread_local std::unordered_map<std::uint64_t, Scratch> per_object;
     auto [it, inserted] = per_object.try_emplace(id_);
     Scratch& fresh = it->second;
     if (inserted) {

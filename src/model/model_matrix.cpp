@@ -13,6 +13,17 @@ void ModelMatrix::cache_diagonal() {
   diagonal_ = sparse_.diagonal();
 }
 
+void ModelMatrix::multiply_general(const Eigen::Ref<const Eigen::VectorXd>& x,
+                                   Eigen::Ref<Eigen::VectorXd> y) const {
+  if (diagonal_.size() > 0) {
+    y.array() = diagonal_.array() * x.array();
+  } else if (is_sparse_) {
+    y.noalias() = sparse_ * x;
+  } else {
+    y.noalias() = dense_ * x;
+  }
+}
+
 ModelMatrix ModelMatrix::identity(Eigen::Index dimension, double value) {
   return diagonal(Eigen::VectorXd::Constant(dimension, value));
 }

@@ -112,8 +112,12 @@ class Integrator {
     }
     return s;
   }
+  /// Steps to the end without an observer: the same steps, without building a StepView after
+  /// each (an out-of-line call, ≈ 2 % of a d = 1 step).
   Status run() {
-    return run([](const StepView&) {});
+    Status s = status();
+    while (s == Status::kRunning) s = step();
+    return s;
   }
 
   [[nodiscard]] Status status() const;
