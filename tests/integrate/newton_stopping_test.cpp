@@ -212,7 +212,7 @@ KeptRun run_kept(double h, double dt, double amplitude, int calls) {
 
 // Small steps along a slow motion (h = 0.01, the state moving 10× slower than a step's
 // increment: the predictor's error is small): a J kept from the last call contracts by ≈ 1e-5, and
-// the banded path factors in a small fraction of the calls (18 of 200 when written) while taking as
+// the banded path factors in a small fraction of the calls (32 of 200 when written) while taking as
 // many corrections as full Newton (401), every increment within the tolerance of full Newton's.
 TEST(MidpointNewtonKeptJacobian, FactorsRarelyAlongASmoothMotionAndMeetsTheTolerance) {
   const KeptRun run = run_kept(0.01, 0.001, 0.8, 200);
