@@ -335,6 +335,11 @@ Event python_event(const py::tuple& item, std::size_t index) {
   return event;
 }
 
+/// Whether the model's potential or force are Python functions (callables.hpp).
+bool calls_python(const MechanicalModel& model) {
+  return python::is_python(model.potential) || python::is_python(model.state_force);
+}
+
 /// prepare_run (the CLI's checks and messages) with the run options applied and validated.
 /// `caller` names the Python function in messages.
 PreparedRun prepare_python_run(const ProblemSpec& spec, const RunOptions& run,
@@ -353,6 +358,9 @@ PreparedRun prepare_python_run(const ProblemSpec& spec, const RunOptions& run,
   for (std::size_t i = 0; i < run.events.size(); ++i) {
     options.events.push_back(python_event(run.events[i], options.events.size()));
   }
+  // A run of a model with Python functions holds the GIL throughout (run_problem): a mirror run
+  // alongside it on a second thread would wait for the GIL at its first call, and the run for it.
+  if (calls_python(prepared.problem.model)) options.mirror_alongside = false;
   try {
     validate(options);
   } catch (const ValidationError& e) {
@@ -365,11 +373,6 @@ PreparedRun prepare_python_run(const ProblemSpec& spec, const RunOptions& run,
                        caller + " writes none (set it to 0)");
   }
   return prepared;
-}
-
-/// Whether the model's potential or force are Python functions (callables.hpp).
-bool calls_python(const MechanicalModel& model) {
-  return python::is_python(model.potential) || python::is_python(model.state_force);
 }
 
 /// The KeyboardInterrupt or SystemExit one of the model's Python functions raised, or None;

@@ -2,12 +2,20 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
+#include <functional>
 #include <limits>
+#include <mutex>
+#include <span>
 #include <string>
+#include <system_error>
+#include <thread>
 #include <utility>
+#include <vector>
 
 #include <boost/math/tools/toms748_solve.hpp>
 
@@ -88,6 +96,134 @@ std::size_t stored_rows(std::size_t n_steps, std::size_t every) {
   return n_steps / every + 1 + (n_steps % every != 0 ? 1 : 0);
 }
 
+// The mirror check on a second thread alongside the run (IntegratorOptions::mirror_alongside).
+// The backward mirror run needs only the problem, the options and x_1 (Stepper::mirror_run), not
+// the rest of the trajectory: it starts as soon as the first step is done, keeps y at the stored
+// steps predicted from N and output.every, and take_solution() compares them with the stored
+// rows — the same numbers as a mirror run after the run, with the run and the mirror run on two
+// cores instead of one after the other. The run's interrupt hook is asked on the calling thread
+// only (finish()); the mirror thread sees a flag.
+class AlongsideMirror {
+ public:
+  AlongsideMirror(const Stepper& stepper, std::vector<std::size_t> steps, Eigen::Index d)
+      : steps_(std::move(steps)),
+        rows_(steps_, static_cast<Eigen::Index>(steps_.size()), d, cancel_),
+        thread_([this, &stepper] { body(stepper); }) {}
+  ~AlongsideMirror() {
+    cancel_.store(true, std::memory_order_relaxed);
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      if (gate_ == Gate::kClosed) gate_ = Gate::kAbandoned;
+    }
+    changed_.notify_all();
+    thread_.join();
+  }
+  AlongsideMirror(const AlongsideMirror&) = delete;
+  AlongsideMirror& operator=(const AlongsideMirror&) = delete;
+
+  // x_1 is known: the mirror run starts. Called from the step loop: no allocation.
+  void open() noexcept {
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      if (gate_ == Gate::kClosed) gate_ = Gate::kOpen;
+    }
+    changed_.notify_all();
+  }
+  [[nodiscard]] bool opened() const {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return gate_ == Gate::kOpen;
+  }
+  [[nodiscard]] const std::vector<std::size_t>& steps() const noexcept { return steps_; }
+
+  // Waits for the mirror run (asking `interrupted` every 10 ms: true cancels it) and returns the
+  // mirror error of the stored rows `x` (row i at steps()[i]), or NaN when the mirror run failed
+  // or was cancelled.
+  [[nodiscard]] double finish(const RowMatrixXd& x, const std::function<bool()>& interrupted) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (!done_) {
+      if (changed_.wait_for(lock, std::chrono::milliseconds(10)) == std::cv_status::timeout &&
+          !done_ && interrupted()) {
+        cancel_.store(true, std::memory_order_relaxed);
+        changed_.wait(lock, [this] { return done_; });
+        return kNaN;
+      }
+    }
+    if (!succeeded_) return kNaN;
+    return rows_.error(x);
+  }
+
+ private:
+  enum class Gate { kClosed, kOpen, kAbandoned };
+
+  // y at the predicted stored steps, and which rows the mirror run reached.
+  class Recorded final : public MirrorRows {
+   public:
+    Recorded(std::span<const std::size_t> steps, Eigen::Index rows, Eigen::Index d,
+             const std::atomic<bool>& cancel)
+        : MirrorRows(steps),
+          y_(rows, d),
+          reached_(static_cast<std::size_t>(rows), 0),
+          cancel_(cancel) {}
+    void put(std::size_t row, const Eigen::VectorXd& y) override {
+      y_.row(static_cast<Eigen::Index>(row)) = y.transpose();
+      reached_[row] = 1;
+    }
+    bool stop() override { return cancel_.load(std::memory_order_relaxed); }
+    // MirrorComparison's maximum over the rows reached, the same differences in the same order.
+    [[nodiscard]] double error(const RowMatrixXd& x) const {
+      MirrorComparison comparison(x, steps(), {});
+      Eigen::VectorXd y(y_.cols());
+      for (std::size_t i = 0; i < reached_.size(); ++i) {
+        if (reached_[i] == 0) continue;
+        y = y_.row(static_cast<Eigen::Index>(i)).transpose();
+        comparison.put(i, y);
+      }
+      return comparison.error();
+    }
+
+   private:
+    RowMatrixXd y_;
+    std::vector<unsigned char> reached_;
+    const std::atomic<bool>& cancel_;
+  };
+
+  void body(const Stepper& stepper) {
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      changed_.wait(lock, [this] { return gate_ != Gate::kClosed; });
+      if (gate_ == Gate::kAbandoned) {
+        done_ = true;
+        return;
+      }
+    }
+    const bool succeeded = stepper.mirror_run(rows_);  // noexcept in effect: false on a throw
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      succeeded_ = succeeded;
+      done_ = true;
+    }
+    changed_.notify_all();
+  }
+
+  std::vector<std::size_t> steps_;
+  std::atomic<bool> cancel_{false};
+  Recorded rows_;
+  mutable std::mutex mutex_;
+  std::condition_variable changed_;
+  Gate gate_ = Gate::kClosed;
+  bool done_ = false, succeeded_ = false;
+  std::thread thread_;  // last: starts once everything above is constructed
+};
+
+// The stored steps of a run of N steps with output.every = s: 0, s, 2s, …, and N.
+std::vector<std::size_t> stored_steps_of(std::size_t n_steps, std::size_t every) {
+  std::vector<std::size_t> steps;
+  steps.reserve(stored_rows(n_steps, every));
+  for (std::size_t k = 0; k <= n_steps; k += every) steps.push_back(k);
+  if (steps.back() != n_steps) steps.push_back(n_steps);
+  return steps;
+}
+
 }  // namespace
 
 void check_storage(const InitialValueProblem& problem, const IntegratorOptions& options) {
@@ -125,6 +261,9 @@ struct Integrator::Impl {
   std::size_t n_steps;
   double h;
   std::unique_ptr<Stepper> stepper;
+  // The mirror check alongside the run, or null (IntegratorOptions::mirror_alongside); declared
+  // after the stepper, which its thread reads, so that it is joined first.
+  std::unique_ptr<AlongsideMirror> alongside;
 
   Solution sol;
   std::size_t k = 0;
@@ -218,6 +357,26 @@ struct Integrator::Impl {
     init_health();
     store();
     init_dense();
+    start_alongside_mirror();
+  }
+
+  // IntegratorOptions::mirror_alongside, when it applies (integrator.hpp); otherwise, or when no
+  // thread can be started, take_solution() runs the mirror check after the run.
+  void start_alongside_mirror() {
+    if (!options.mirror || !options.mirror_alongside || options.threads == 1 ||
+        !options.events.empty() || d >= kMaxAlongsideMirrorDimension ||
+        std::thread::hardware_concurrency() < 2 || !stepper->has_mirror_run()) {
+      return;
+    }
+    const double bytes = static_cast<double>(stored_rows(n_steps, options.save_every)) *
+                         static_cast<double>(d) * sizeof(double);
+    if (bytes > kMaxAlongsideMirrorBytes) return;
+    try {
+      alongside = std::make_unique<AlongsideMirror>(
+          *stepper, stored_steps_of(n_steps, options.save_every), d);
+    } catch (const std::system_error&) {
+      alongside.reset();  // no thread: the mirror run after the run
+    }
   }
 
   // Sizes the dense output's storage, evaluates every event at (t_0, x_0, v_0) and outputs the
@@ -664,6 +823,14 @@ struct Integrator::Impl {
     archive.count("health.next_checkpoint", next_checkpoint);
     archive.count("health.max_balance_step", max_balance_step);
     stepper->visit_state(archive);
+    if (archive.loading() && alongside) {
+      // A mirror run that started from this Integrator's own x_1 is no use for the restored run.
+      if (alongside->opened()) {
+        alongside.reset();
+      } else if (k >= 1) {
+        alongside->open();
+      }
+    }
   }
 
   [[nodiscard]] Solution result(Solution s, std::size_t rows) const;
@@ -687,6 +854,7 @@ struct Integrator::Impl {
       return fail(s, stepper->failure_message(), stepper->failure_detail());
     }
     ++k;
+    if (k == 1 && alongside) alongside->open();  // x_1 is known: the mirror run can start
     if (options.diagnostics) {
       // Step k is computed; if its diagnostics fail, the run ends with it as the last row.
       Status bad = Status::kSuccess;
@@ -804,7 +972,8 @@ void Integrator::visit_state(StateArchive& archive) {
 double Integrator::mirror_error() const {
   if (impl_->status != Status::kSuccess) return kNaN;
   return impl_->stepper->mirror_error(
-      impl_->sol.x, std::span<const std::size_t>(impl_->sol.step.data(), impl_->saved));
+      impl_->sol.x, std::span<const std::size_t>(impl_->sol.step.data(), impl_->saved),
+      impl_->options.interrupt);
 }
 
 // `s` holding `rows` rows (the stored ones and, when the run stopped between them, the state at
@@ -854,7 +1023,16 @@ Solution Integrator::take_solution() {
   double seconds = im.run_seconds;
   if (im.options.mirror && im.status == Status::kSuccess) {
     const auto start = std::chrono::steady_clock::now();
-    im.sol.mirror_error = mirror_error();
+    const std::vector<std::size_t>* predicted = im.alongside ? &im.alongside->steps() : nullptr;
+    if (predicted != nullptr && im.alongside->opened() && predicted->size() == im.saved &&
+        std::equal(predicted->begin(), predicted->end(), im.sol.step.begin())) {
+      im.sol.mirror_error =
+          im.alongside->finish(im.sol.x, [&im] { return im.interrupt_requested(); });
+      im.sol.mirror_alongside = true;
+    } else {
+      im.alongside.reset();  // not the rows it predicted (never expected): after the run instead
+      im.sol.mirror_error = mirror_error();
+    }
     seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     // A signal during the mirror check (the mirror runs poll the hook, which keeps answering true
     // once it has, options.hpp) stops it: the trajectory is complete, the check was not made.

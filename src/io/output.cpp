@@ -88,6 +88,9 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   o.threads = spec.threads;
   o.save_every = static_cast<std::size_t>(stored_every(spec));
   o.mirror = mirror_check_runs(spec);
+  // On a second core alongside the run where it applies (integrator.hpp): a problem file's run is
+  // one process's whole job, and method.threads = 1 keeps it on one core.
+  o.mirror_alongside = true;
   o.output_times = spec.times;
   for (std::size_t i = 0; i < spec.events.size(); ++i) {
     const ProblemSpec::EventSpec& e = spec.events[i];

@@ -290,8 +290,7 @@ void CqMidpointStepper::visit_state(StateArchive& archive) {
 // (explicit memory): a forward-running history fed with ỹ_N, ỹ_{N−1}, …, ỹ_j = y_j − y_N −
 // (t_N − t_j) v_0 (the shift of the reversed clock); kTaylorSplit adds P's force of the mirrored
 // node.
-double CqMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
-                                       std::span<const std::size_t> steps) const {
+bool CqMidpointStepper::mirror_run(MirrorRows& rows) const {
   struct Damping {
     const CqMidpointStepper& self;
     std::unique_ptr<History> hist;
@@ -328,8 +327,7 @@ double CqMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
       if (self.damped_) push(y_km1, k - 1);
     }
   } damping{*this, nullptr, Eigen::VectorXd(d_), Eigen::VectorXd(d_), n_steps_};
-  return backward_mirror_run(problem_, options_, mass_, mass_, h_, x_first_, x_rows, steps,
-                             damping);
+  return backward_mirror_run(problem_, options_, mass_, mass_, h_, x_first_, rows, damping);
 }
 
 }  // namespace fracvi::internal

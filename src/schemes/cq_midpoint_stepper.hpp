@@ -52,8 +52,8 @@ class CqMidpointStepper final : public Stepper {
   [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
-  [[nodiscard]] double mirror_error(const RowMatrixXd& x,
-                                    std::span<const std::size_t> steps) const override;
+  [[nodiscard]] bool has_mirror_run() const override { return true; }
+  [[nodiscard]] bool mirror_run(MirrorRows& rows) const override;
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
   [[nodiscard]] HistoryReport history() const override {
     return history_ ? history_->report() : HistoryReport{};

@@ -542,8 +542,9 @@ class LobattoStepper final : public Stepper {
   // reversed orientation, where the physical velocity is −ẏ).
   void interval_force(Blocks& b, const Eigen::MatrixXd& current, int last,
                       double velocity_sign = 1.0) const;
-  [[nodiscard]] double mirror_error(const RowMatrixXd& x,
-                                    std::span<const std::size_t> steps) const override;
+  [[nodiscard]] bool has_mirror_run() const override { return true; }
+  [[nodiscard]] bool mirror_run(MirrorRows& rows) const override;
+  [[nodiscard]] bool mirror_steps(MirrorRows& rows) const;  // mirror_run but for its catch
 
   const InitialValueProblem& problem_;
   IntegratorOptions options_;
@@ -790,9 +791,17 @@ Status LobattoStepper::advance() {
 // reversed and read back reversed), and J W_0 J on the interval's own stages. Nothing is shared
 // with the x-run but the model: the reversed trajectory solves these equations exactly (the
 // symmetry W_jᵀB = J B W_j J of Lobatto IIIC), so the difference is round-off.
-double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
-                                    std::span<const std::size_t> steps) const {
+bool LobattoStepper::mirror_run(MirrorRows& rows) const {
+  try {
+    return mirror_steps(rows);
+  } catch (...) {
+    return false;  // a callback threw: the check is unavailable, the run not invalid
+  }
+}
+
+bool LobattoStepper::mirror_steps(MirrorRows& rows) const {
   const std::size_t n_steps = problem_.steps;
+  const std::span<const std::size_t> steps = rows.steps();
   const Eigen::MatrixXd reversal = Eigen::MatrixXd::Identity(s_, s_).rowwise().reverse();
   const Eigen::MatrixXd current = reversal * w0_ * reversal;
   // The y-curve runs backwards in time: g sees the physical velocity −ẏ (σ = −1).
@@ -813,6 +822,9 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
     forcing_load =
         std::make_unique<ForcingMoments>(nodes_.basis, nodes_.slope, problem_.model.forcing, d_);
   }
+  // Its own M⁻¹: a sparse M's factor solves in a workspace of its own, and the x-run may be
+  // solving with mass_solver_ on another thread (Stepper::mirror_run).
+  const MassSolver mass_solver(mass_, damping_, options_.linear_solver);
   Blocks y;
   y.resize(d_, s_);
   Eigen::VectorXd node = problem_.x0, q(d_), yv(d_), value(s_), slope(s_);
@@ -824,24 +836,17 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
   if (linear) {
     y.stages.colwise() = node;
     y.times.setConstant(problem_.t_end);
-    if (!matrix.factor(y.stages, y.times, y.velocities)) return kNaN;
+    if (!matrix.factor(y.stages, y.times, y.velocities)) return false;
   }
   // Stored rows: x at steps[i] mirrors y at N − steps[i]; walk them as y_m is produced.
-  const std::size_t rows =
-      std::min<std::size_t>(steps.size(), static_cast<std::size_t>(x_rows.rows()));
-  double error = 0.0;
   std::size_t row = 0;
   auto compare = [&](std::size_t m, const Eigen::VectorXd& ym) {
-    while (row < rows && steps[row] < n_steps - m) ++row;
-    if (row < rows && steps[row] == n_steps - m) {
-      error = std::max(
-          error,
-          (x_rows.row(static_cast<Eigen::Index>(row)).transpose() - ym).cwiseAbs().maxCoeff());
-    }
+    while (row < steps.size() && steps[row] < n_steps - m) ++row;
+    if (row < steps.size() && steps[row] == n_steps - m) rows.put(row, ym);
   };
   compare(n_steps, node);
   for (std::size_t m = n_steps; m-- > 0;) {
-    if (mirror_interrupted(options_)) return kNaN;
+    if (rows.stop()) return false;
     const double tm = problem_.time(static_cast<double>(m));
     for (int a = 0; a < s_; ++a)
       y.times(a) = problem_.t0 + problem_.t_end - (tm + nodes_.c(a) * h_);
@@ -869,7 +874,7 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
       y.loads.noalias() -= h_ * forcing_value.rowwise().reverse();
     }
     // Guess: the line through y_{m+1} with the y-velocity M⁻¹q_{m+1}.
-    mass_solver_.inverse(q, yv);
+    mass_solver.inverse(q, yv);
     for (int a = 0; a < s_; ++a) y.delta.col(a) = (-(1.0 - nodes_.c(a)) * h_) * yv;
     y.stages = y.delta;
     y.stages.colwise() += node;
@@ -879,8 +884,8 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
       interval_force(y, current, s_, -1.0);
       for (int r = 0; r + 1 < s_; ++r) residual.segment(r * d_, d_) = -y.force.col(r + 1);
       residual.tail(d_) += q;
-      if (!residual.allFinite()) return kNaN;
-      if (!linear && !matrix.factor(y.stages, y.times, y.velocities)) return kNaN;
+      if (!residual.allFinite()) return false;
+      if (!linear && !matrix.factor(y.stages, y.times, y.velocities)) return false;
       matrix.solve_in_place(residual, scratch);
       double correction = 0.0;
       for (int c = 0; c + 1 < s_; ++c) {
@@ -899,7 +904,7 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
                            4.0 * std::numeric_limits<double>::epsilon() * scale))
         break;
       previous_correction = correction;
-      if (iteration >= options_.newton.max_iterations) return kNaN;
+      if (iteration >= options_.newton.max_iterations) return false;
     }
     interval_force(y, current, s_, -1.0);
     if (history) {
@@ -909,10 +914,10 @@ double LobattoStepper::mirror_error(const RowMatrixXd& x_rows,
     }
     node = y.stages.col(0);
     q = -y.force.col(0);
-    if (!node.allFinite() || !q.allFinite()) return kNaN;
+    if (!node.allFinite() || !q.allFinite()) return false;
     compare(m, node);
   }
-  return error;
+  return true;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1248,15 +1253,24 @@ class SeriesShiftStepper final : public Stepper {
     stepper_->visit_state(archive);
     if (archive.loading()) report(stepper_->step_index());
   }
-  [[nodiscard]] double mirror_error(const RowMatrixXd& x,
-                                    std::span<const std::size_t> steps) const override {
-    RowMatrixXd w = x;
-    Eigen::VectorXd shift(x.cols()), rate(x.cols());
-    for (Eigen::Index i = 0; i < w.rows() && static_cast<std::size_t>(i) < steps.size(); ++i) {
-      evaluate(problem_.time(static_cast<double>(steps[static_cast<std::size_t>(i)])), shift, rate);
-      w.row(i) -= shift.transpose();
-    }
-    return static_cast<const Stepper&>(*stepper_).mirror_error(w, steps);
+  [[nodiscard]] bool has_mirror_run() const override { return true; }
+  // The remainder's mirror run, its y shifted by the series as x is (report()): y + S(t) at the
+  // mirrored step's time.
+  [[nodiscard]] bool mirror_run(MirrorRows& rows) const override {
+    struct Shifted final : MirrorRows {
+      const SeriesShiftStepper& self;
+      MirrorRows& outer;
+      Eigen::VectorXd shift, rate, y_total;
+      Shifted(const SeriesShiftStepper& s, MirrorRows& o, Eigen::Index d)
+          : MirrorRows(o.steps()), self(s), outer(o), shift(d), rate(d), y_total(d) {}
+      void put(std::size_t row, const Eigen::VectorXd& y) override {
+        self.evaluate(self.problem_.time(static_cast<double>(steps()[row])), shift, rate);
+        y_total = y + shift;
+        outer.put(row, y_total);
+      }
+      bool stop() override { return outer.stop(); }
+    } shifted(*this, rows, problem_.model.dimension());
+    return static_cast<const Stepper&>(*stepper_).mirror_run(shifted);
   }
 
  private:

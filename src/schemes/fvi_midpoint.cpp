@@ -101,8 +101,8 @@ class TrapezoidalMidpointStepper final : public Stepper {
   [[nodiscard]] HistoryReport history() const override {
     return memory_ ? memory_->report() : HistoryReport{};
   }
-  [[nodiscard]] double mirror_error(const RowMatrixXd& x,
-                                    std::span<const std::size_t> steps) const override;
+  [[nodiscard]] bool has_mirror_run() const override { return true; }
+  [[nodiscard]] bool mirror_run(MirrorRows& rows) const override;
 
   void visit_state(StateArchive& archive) override {
     visit_step_index(archive, d_, n_steps_, k_);
@@ -257,8 +257,7 @@ Status TrapezoidalMidpointStepper::advance() {
 // average over midpoints, ỹ̄_i mirroring x̃̄_{N−1−i}), its own forward-running pair of histories
 // over ȳ_{N−1}, ȳ_{N−2}, … and P's force of the mirrored cells. The weight ω̂_0 of the unknown
 // midpoint ȳ_{k−1} = y_k + Δ/2 is in the Newton matrix, as in the x-run.
-double TrapezoidalMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
-                                                std::span<const std::size_t> steps) const {
+bool TrapezoidalMidpointStepper::mirror_run(MirrorRows& rows) const {
   struct Damping {
     const TrapezoidalMidpointStepper& self;
     std::size_t n;
@@ -299,7 +298,7 @@ double TrapezoidalMidpointStepper::mirror_error(const RowMatrixXd& x_rows,
   };
   const Eigen::VectorXd work = Eigen::VectorXd::Zero(d_);
   Damping damping{*this, n_steps_, nullptr, work, work, work, work};
-  return backward_mirror_run(problem_, options_, mass_, newton_matrix_, h_, x_first_, x_rows, steps,
+  return backward_mirror_run(problem_, options_, mass_, newton_matrix_, h_, x_first_, rows,
                              damping);
 }
 

@@ -17,46 +17,32 @@
 //   void start(const Eigen::VectorXd& y_n, const Eigen::VectorXd& y_n1);   // y_N, y_{N−1}
 //   void known(std::size_t k, const Eigen::VectorXd& y_k, Eigen::VectorXd& d);  // d = D^known_k
 //   void accept(std::size_t k, const Eigen::VectorXd& y_km1, const Eigen::VectorXd& y_k);
-// (accept() after y_{k−1} is solved). The result is max ‖y_{k−1} − x_{N−k+1}‖_∞ over the stored
-// rows (row i of x_rows is x at step steps[i], ascending), or NaN when Newton fails, a callback
-// throws (the check is then unavailable, the run not invalid) or the run's interrupt hook asks to
+// (accept() after y_{k−1} is solved). y_{k−1} goes to rows.put() at the stored rows it mirrors
+// (row i of the run's rows is x at step rows.steps()[i], ascending). false when Newton fails, a
+// callback throws (the check is then unavailable, the run not invalid) or rows.stop() asks to
 // stop.
 #pragma once
 
 #include <Eigen/Dense>
 #include <cstddef>
-#include <limits>
 #include <span>
 
 #include "forcing_moments.hpp"
 #include "fracvi/core/matrix.hpp"
 #include "fracvi/schemes/options.hpp"
+#include "fracvi/schemes/stepper.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
 
 namespace fracvi::internal {
 
-/// The run's interrupt hook (IntegratorOptions::interrupt), polled by the mirror runs before each
-/// of their steps: a signal during the mirror check ends it at once (NaN), and the Integrator then
-/// reports the run as interrupted. A hook that throws is taken as a request to stop.
-inline bool mirror_interrupted(const IntegratorOptions& options) noexcept {
-  if (!options.interrupt) return false;
-  try {
-    return options.interrupt();
-  } catch (...) {
-    return true;
-  }
-}
-
 template <class Damping>
-double backward_mirror_run(const InitialValueProblem& problem, const IntegratorOptions& options,
-                           const ModelMatrix& mass, const ModelMatrix& newton_matrix, double h,
-                           const Eigen::VectorXd& x1, const RowMatrixXd& x_rows,
-                           std::span<const std::size_t> steps, Damping& damping) {
-  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-  const std::size_t rows = steps.size();
+bool backward_mirror_run(const InitialValueProblem& problem, const IntegratorOptions& options,
+                         const ModelMatrix& mass, const ModelMatrix& newton_matrix, double h,
+                         const Eigen::VectorXd& x1, MirrorRows& rows, Damping& damping) {
+  const std::span<const std::size_t> steps = rows.steps();
   try {
     const std::size_t n = problem.steps;
-    if (n < 2) return 0.0;
+    if (n < 2) return true;
     MidpointNewton solver(newton_matrix, h, problem.model.potential.get(), options.newton,
                           problem.t0, options.linear_solver, problem.model.state_force.get());
     const Eigen::Index d = problem.model.dimension();
@@ -68,9 +54,8 @@ double backward_mirror_run(const InitialValueProblem& problem, const IntegratorO
     Eigen::VectorXd delta = y_k - y_next;
     damping.start(y_next, y_k);
     std::size_t next_row = 0;
-    double err = 0.0;
     for (std::size_t kk = n - 1; kk >= 1; --kk) {
-      if (mirror_interrupted(options)) return kNaN;
+      if (rows.stop()) return false;
       damping.known(kk, y_k, known);
       // ȳ_k = (y_{k+1} + y_k)/2 mirrors x̄ at t_{N−k−½}; ȳ_{k−1} mirrors x̄ at t_{N−k+½}.
       const double tau_known = half_time(n - kk - 1), tau_new = half_time(n - kk);
@@ -100,25 +85,21 @@ double backward_mirror_run(const InitialValueProblem& problem, const IntegratorO
         step[i] = delta[i];                                         // predictor
       }
       const NewtonReport report = solver.solve(y_k, tau_new, c, f_new, step);
-      if (report.status != Status::kSuccess) return kNaN;
+      if (report.status != Status::kSuccess) return false;
       for (Eigen::Index i = 0; i < d; ++i) {
         delta[i] = step[i];
         y_prev[i] = y_k[i] + delta[i];
       }
       const std::size_t mirrored = n - kk + 1;  // y_{kk−1} ≈ x_{mirrored}
-      while (next_row < rows && steps[next_row] < mirrored) ++next_row;
-      if (next_row < rows && steps[next_row] == mirrored) {
-        const Eigen::Map<const Eigen::VectorXd> x_row(
-            x_rows.row(static_cast<Eigen::Index>(next_row)).data(), d);
-        err = std::max(err, (y_prev - x_row).cwiseAbs().maxCoeff());
-      }
+      while (next_row < steps.size() && steps[next_row] < mirrored) ++next_row;
+      if (next_row < steps.size() && steps[next_row] == mirrored) rows.put(next_row, y_prev);
       damping.accept(kk, y_prev, y_k);
       y_next.swap(y_k);
       y_k.swap(y_prev);
     }
-    return err;
+    return true;
   } catch (...) {
-    return kNaN;
+    return false;
   }
 }
 

@@ -1,5 +1,6 @@
 #include "fracvi/schemes/stepper.hpp"
 
+#include <algorithm>
 #include <cstdarg>
 #include <cstdio>
 #include <exception>
@@ -62,8 +63,35 @@ Status Stepper::newton_outcome(const internal::NewtonReport& report, const char*
   return Status::kSuccess;
 }
 
-double Stepper::mirror_error(const RowMatrixXd&, std::span<const std::size_t>) const {
-  return std::numeric_limits<double>::quiet_NaN();
+MirrorComparison::MirrorComparison(const RowMatrixXd& x, std::span<const std::size_t> steps,
+                                   const std::function<bool()>& interrupt) noexcept
+    : MirrorRows(steps.first(std::min(steps.size(), static_cast<std::size_t>(x.rows())))),
+      x_(x),
+      interrupt_(interrupt) {}
+
+void MirrorComparison::put(std::size_t row, const Eigen::VectorXd& y) {
+  const Eigen::Map<const Eigen::VectorXd> x_row(x_.row(static_cast<Eigen::Index>(row)).data(),
+                                                x_.cols());
+  error_ = std::max(error_, (y - x_row).cwiseAbs().maxCoeff());
+}
+
+bool MirrorComparison::stop() {
+  if (!interrupt_) return false;
+  try {
+    return interrupt_();
+  } catch (...) {
+    return true;  // a hook that cannot answer is taken as a request to stop
+  }
+}
+
+double Stepper::mirror_error(const RowMatrixXd& x, std::span<const std::size_t> steps,
+                             const std::function<bool()>& interrupt) const {
+  MirrorComparison rows(x, steps, interrupt);
+  return mirror_run(rows) ? rows.error() : std::numeric_limits<double>::quiet_NaN();
+}
+
+bool Stepper::mirror_run(MirrorRows&) const {
+  return false;
 }
 
 }  // namespace fracvi

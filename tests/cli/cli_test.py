@@ -995,8 +995,11 @@ class Interrupts(unittest.TestCase):
         # polls the signal flag too. The checkpoint after step N - 1 says the forward run is one
         # step from its end: a signal sent then arrives during the mirror check (or, on a loaded
         # machine, just before step N: then the run stops there, and the test tries again).
+        # method.threads = 1 keeps the mirror run after the run: on two cores it runs alongside
+        # and ends with it (the interrupted wait for it: tests/integrate/mirror_test.cpp).
         steps = 20_000
         problem = self.problem(steps, 20.0, history="direct", checkpoint=steps - 1)
+        problem += ["--set", "method.threads=1"]
         for attempt in range(5):
             out = os.path.join(self.dir, f"mirror-{attempt}")
             code, stdout, stderr = self.interrupted(problem, out, signal.SIGINT,

@@ -4,9 +4,15 @@
 // x_0, v_0 ≠ 0, so the mirrored Caputo shift is exercised), on a nonlinear, forced problem.
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <bit>
+#include <chrono>
+#include <cstdint>
 #include <cstdio>
+#include <thread>
 
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/schemes/registry.hpp"
 #include "integrate_test_support.hpp"
 
 namespace fracvi {
@@ -101,6 +107,121 @@ TEST(MirrorControl, CanBeSkipped) {
       integrate(problem(0.75, Convention::kCaputo, Eigen::VectorXd{{1.2, -0.4}}), fvi_gl(), o);
   ASSERT_TRUE(sol.ok());
   EXPECT_TRUE(std::isnan(sol.mirror_error));
+}
+
+// The mirror run alongside the run (IntegratorOptions::mirror_alongside): started after the first
+// step on a second thread, it keeps y at the stored steps, and take_solution() compares: the same
+// mirror error bit for bit as the mirror run after the run, and the same trajectory, for every
+// scheme with a mirror run (the midpoint schemes start from x_0, x_1; the Lobatto FVIs from x_0,
+// v_0; the series split shifts y), with strides that divide N and that do not (the last row).
+struct AlongsideCase {
+  const char* scheme;
+  std::size_t every;
+  bool series;
+};
+
+class MirrorAlongside : public ::testing::TestWithParam<AlongsideCase> {};
+
+TEST_P(MirrorAlongside, SameMirrorErrorAsAfterTheRun) {
+  if (std::thread::hardware_concurrency() < 2) {
+    GTEST_SKIP() << "one hardware thread: the mirror run runs after the run";
+  }
+  const AlongsideCase c = GetParam();
+  InitialValueProblem p = problem(0.75, Convention::kCaputo, Eigen::VectorXd{{1.2, -0.4}});
+  IntegratorOptions after = tight();
+  after.save_every = c.every;
+  if (c.series) {
+    // The series split is for linear problems with a power-law forcing only.
+    p.model.forcing = nullptr;
+    p.model.potential = make_quadratic_potential(Eigen::MatrixXd{{3.0, -1.0}, {-1.0, 2.0}});
+    after.split = TaylorSplit::kSeries;
+  }
+  IntegratorOptions alongside = after;
+  alongside.mirror_alongside = true;
+  const Method method = *parse_method(c.scheme);
+  const Solution a = integrate(p, method, after);
+  const Solution b = integrate(p, method, alongside);
+  ASSERT_TRUE(a.ok()) << a.message;
+  ASSERT_TRUE(b.ok()) << b.message;
+  EXPECT_FALSE(a.mirror_alongside);
+  EXPECT_TRUE(b.mirror_alongside);
+  std::printf("  %s every %zu%s: mirror_error %.3e after, %.3e alongside\n", c.scheme, c.every,
+              c.series ? " series" : "", a.mirror_error, b.mirror_error);
+  ASSERT_TRUE(std::isfinite(a.mirror_error));
+  EXPECT_LT(a.mirror_error, 1e-10);  // round-off, not a failed check
+  EXPECT_EQ(std::bit_cast<std::uint64_t>(a.mirror_error),
+            std::bit_cast<std::uint64_t>(b.mirror_error));
+  EXPECT_TRUE((a.x.array() == b.x.array()).all());
+}
+
+INSTANTIATE_TEST_SUITE_P(Schemes, MirrorAlongside,
+                         ::testing::Values(AlongsideCase{"fvi-gl", 1, false},
+                                           AlongsideCase{"fvi-gl", 7, false},
+                                           AlongsideCase{"fvi-bdf2", 1, false},
+                                           AlongsideCase{"fvi-midpoint", 1, false},
+                                           AlongsideCase{"fvi-midpoint", 7, false},
+                                           AlongsideCase{"fvi-lobatto3", 1, false},
+                                           AlongsideCase{"fvi-lobatto3", 7, false},
+                                           AlongsideCase{"fvi-lobatto3", 3, true}));
+
+// A potential that is slow on every thread but the one that built it: the mirror run alongside
+// then ends long after the run.
+class SlowElsewhere final : public Potential {
+ public:
+  explicit SlowElsewhere(std::shared_ptr<const Potential> inner)
+      : inner_(std::move(inner)), owner_(std::this_thread::get_id()) {}
+  [[nodiscard]] Eigen::Index dimension() const override { return inner_->dimension(); }
+  [[nodiscard]] bool has_constant_hessian() const override {
+    return inner_->has_constant_hessian();
+  }
+  [[nodiscard]] bool is_time_dependent() const override { return inner_->is_time_dependent(); }
+  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const override {
+    return inner_->value(x, t);
+  }
+  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+                Eigen::Ref<Eigen::VectorXd> g) const override {
+    if (std::this_thread::get_id() != owner_) {
+      std::this_thread::sleep_for(std::chrono::microseconds(500));
+    }
+    inner_->gradient(x, t, g);
+  }
+  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+               Eigen::Ref<Eigen::MatrixXd> h) const override {
+    inner_->hessian(x, t, h);
+  }
+
+ private:
+  std::shared_ptr<const Potential> inner_;
+  std::thread::id owner_;
+};
+
+// An interrupt while take_solution() waits for the mirror run alongside: the wait asks the hook
+// (on the calling thread), the mirror run stops at its next step, and the run is reported
+// interrupted with its whole trajectory, as for a signal during the mirror run after the run.
+TEST(MirrorAlongsideControl, InterruptDuringTheWaitKeepsTheTrajectory) {
+  if (std::thread::hardware_concurrency() < 2) {
+    GTEST_SKIP() << "one hardware thread: the mirror run runs after the run";
+  }
+  InitialValueProblem p = problem(0.75, Convention::kCaputo, Eigen::VectorXd{{1.2, -0.4}});
+  p.model.potential = std::make_shared<const SlowElsewhere>(p.model.potential);
+  IntegratorOptions o = tight();
+  o.mirror_alongside = true;
+  // The run asks before each of its kN steps; from then on (the wait) the answer is yes.
+  auto calls = std::make_shared<std::atomic<std::size_t>>(0);
+  o.interrupt = [calls] { return calls->fetch_add(1) >= kN; };
+  const auto start = std::chrono::steady_clock::now();
+  const Solution sol = integrate(p, fvi_gl(), o);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(sol.status, Status::kInterrupted) << sol.message;
+  EXPECT_EQ(sol.steps_done, kN);
+  EXPECT_TRUE(std::isnan(sol.mirror_error));
+  EXPECT_TRUE(sol.x.allFinite());
+  EXPECT_NE(sol.message.find("interrupted during the mirror check"), std::string::npos)
+      << sol.message;
+  // ≥ 2 kN gradients at 0.5 ms each on the mirror thread: ≥ 0.4 s uninterrupted.
+  std::printf("  interrupted after %.3f s\n", seconds);
+  EXPECT_LT(seconds, 0.3);
 }
 
 }  // namespace

@@ -71,6 +71,12 @@ struct StepView {
   double balance;
 };
 
+/// IntegratorOptions::mirror_alongside applies below this dimension (above it the fast history's
+/// threads use the second core; the concurrent error estimate has the same bound) …
+inline constexpr Eigen::Index kMaxAlongsideMirrorDimension = 2048;
+/// … and when the mirror run's copy of the stored positions (rows × d doubles) takes at most this.
+inline constexpr double kMaxAlongsideMirrorBytes = 256.0 * 1024.0 * 1024.0;
+
 /// The rules of the health checks above.
 inline constexpr double kUnstableDampingFactor = 10.0;
 inline constexpr double kUnstableGrowthFactor = 1e8;

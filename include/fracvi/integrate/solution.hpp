@@ -119,8 +119,13 @@ struct Solution {
   /// max_k ‖y_k − x_{N−k}‖_∞ from the independent backward run of the mirror equation
   /// (`DiscEqs`, second line); NaN if not computed (disabled, or the run did not succeed).
   double mirror_error = std::numeric_limits<double>::quiet_NaN();
+  /// The mirror run ran on a second thread alongside the run (IntegratorOptions::mirror_alongside)
+  /// rather than after it: the same mirror_error; wall_time_seconds then holds only the wait for
+  /// it.
+  bool mirror_alongside = false;
   double max_balance_error = 0.0;  ///< max_k |balance[k]| (NaN with options.diagnostics = false)
-  /// Stepping: the x-run plus the mirror run (the integration alone, what comparisons time).
+  /// Stepping: the x-run plus the mirror run, or plus the wait for the mirror run when it ran
+  /// alongside (the integration alone, what comparisons time).
   double wall_time_seconds = 0.0;
   /// Setting up the run before step 1 (Integrator's constructor: validation, weights, the fast
   /// history's fit or FFT plans, factorisations); a run's whole cost is the sum of the two.

@@ -82,8 +82,20 @@ struct IntegratorOptions {
   /// kAutoHistoryTolerance (0) lets the run choose it (history_budget()); a number in
   /// [kMinHistoryTolerance, kMaxHistoryTolerance] is used exactly.
   double history_tolerance = kAutoHistoryTolerance;
-  /// Run the mirror equation backwards and report Solution::mirror_error (doubles the cost).
+  /// Run the mirror equation backwards and report Solution::mirror_error (about the cost of the
+  /// run again: on a second core alongside the run when mirror_alongside applies, else after it).
   bool mirror = true;
+  /// Run the mirror check on a second thread alongside the run, from the end of the first step on
+  /// (the backward run needs only x_0 and x_1; Stepper::mirror_run), when threads ≠ 1, the
+  /// machine has two hardware threads, there are no events, d < kMaxAlongsideMirrorDimension, the
+  /// scheme has a mirror run and its copy of the stored positions fits kMaxAlongsideMirrorBytes
+  /// (integrator.hpp); otherwise after the run. The same mirror error either way, bit for bit.
+  /// Off by default: a library call starts no thread of its own unless asked (the fast history's
+  /// team aside, IntegratorOptions::threads), and the model's callbacks are then called from two
+  /// threads at once (allowed by the Potential contract). Problem files (`fracvi run`, the Python
+  /// module) turn it on; the Python module not for models that call Python functions, whose runs
+  /// hold the GIL.
+  bool mirror_alongside = false;
   /// Compute energy, dissipated work and balance every step (one potential value per step, three
   /// for a time-dependent U, and a few dot products). When false those columns stay NaN and
   /// Solution::max_balance_error is NaN.

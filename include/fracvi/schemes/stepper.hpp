@@ -19,6 +19,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstddef>
+#include <functional>
 #include <limits>
 #include <span>
 #include <string_view>
@@ -40,6 +41,43 @@ inline constexpr std::size_t kFailureDetailCapacity = 4096;
 namespace internal {
 struct NewtonReport;  // fracvi/solve/midpoint_newton.hpp
 }  // namespace internal
+
+/// Where a mirror run (Stepper::mirror_run) puts the mirror trajectory y: row i of the run's
+/// stored rows is x at steps()[i], and y at the step mirroring it (y_{N−steps[i]} ≈ x_{steps[i]})
+/// goes to put(i, y), once, rows ascending; rows the mirror run does not produce (x_0, x_1 for the
+/// midpoint schemes, which start from them) are skipped. stop() is polled before each backward
+/// step.
+class MirrorRows {
+ public:
+  explicit MirrorRows(std::span<const std::size_t> steps) noexcept : steps_(steps) {}
+  virtual ~MirrorRows() = default;
+  MirrorRows(const MirrorRows&) = delete;
+  MirrorRows& operator=(const MirrorRows&) = delete;
+
+  [[nodiscard]] std::span<const std::size_t> steps() const noexcept { return steps_; }
+  virtual void put(std::size_t row, const Eigen::VectorXd& y) = 0;
+  [[nodiscard]] virtual bool stop() = 0;
+
+ private:
+  std::span<const std::size_t> steps_;
+};
+
+/// The mirror error of stored rows (Solution::mirror_error): max over the rows put of
+/// ‖y − x_row‖_∞, with an interrupt hook as stop() (a hook that throws asks to stop).
+class MirrorComparison final : public MirrorRows {
+ public:
+  /// `x` and `steps` as Stepper::mirror_error's (the rows of both, whichever are fewer).
+  MirrorComparison(const RowMatrixXd& x, std::span<const std::size_t> steps,
+                   const std::function<bool()>& interrupt) noexcept;
+  void put(std::size_t row, const Eigen::VectorXd& y) override;
+  [[nodiscard]] bool stop() override;
+  [[nodiscard]] double error() const noexcept { return error_; }
+
+ private:
+  const RowMatrixXd& x_;
+  const std::function<bool()>& interrupt_;
+  double error_ = 0.0;
+};
 
 class Stepper {
  public:
@@ -69,9 +107,20 @@ class Stepper {
 
   /// The backward run of the scheme's mirror equation on a finished run: max_k ‖y_k − x_{N−k}‖_∞
   /// over the stored rows: row i of `x` is x at step `steps[i]` (steps ascending; rows past
-  /// steps.size() are ignored). NaN when the scheme has none or the backward run fails.
-  [[nodiscard]] virtual double mirror_error(const RowMatrixXd& x,
-                                            std::span<const std::size_t> steps) const;
+  /// steps.size() or x.rows() are ignored); `interrupt` (IntegratorOptions::interrupt) is polled
+  /// before each backward step and ends the run. NaN when the scheme has none, the backward run
+  /// fails or is interrupted. mirror_run() compared with the rows as they come.
+  [[nodiscard]] double mirror_error(const RowMatrixXd& x, std::span<const std::size_t> steps,
+                                    const std::function<bool()>& interrupt = {}) const;
+  /// Whether the scheme has a mirror run (mirror_run below).
+  [[nodiscard]] virtual bool has_mirror_run() const { return false; }
+  /// The backward run of the mirror equation: y at the step mirroring each of rows.steps() handed
+  /// to rows.put(), rows ascending; false when the scheme has none, a backward step fails, a
+  /// callback throws or rows.stop() asks to stop. It needs only the problem, the options and x_1:
+  /// it may run on another thread while step() goes on, from the end of the first step on (the
+  /// Integrator's mirror alongside the run), so it reads nothing step() writes after step 1 and
+  /// shares no workspace with it.
+  [[nodiscard]] virtual bool mirror_run(MirrorRows& rows) const;
 
   /// The stage values of the last step's interval, a d × s block (column a: the state at
   /// t_{k−1} + c_a h), for schemes whose step has internal stages (the Lobatto FVIs); null for
