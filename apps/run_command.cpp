@@ -220,9 +220,11 @@ Command add_run_command(CLI::App& parent) {
         std::printf("  reference error   max |x_k - x_ref(t_k)| = %.3e\n",
                     max_error(solution, parse_reference(spec.reference)));
       }
-      std::printf("  newton            %zu iterations (max %zu per step), %s linear solver\n",
-                  solution.newton_iterations, solution.max_newton_iterations_per_step,
-                  solution.linear_solver.c_str());
+      std::printf(
+          "  newton            %zu iterations (max %zu per step), %zu factorisations, %s linear "
+          "solver\n",
+          solution.newton_iterations, solution.max_newton_iterations_per_step,
+          solution.jacobian_factorizations, solution.linear_solver.c_str());
       if (solution.history == "fast") {
         std::printf(
             "  damping memory    fast: %zu exponentials + window of %zu lags, eps = %.1e (%s), "

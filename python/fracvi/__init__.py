@@ -676,6 +676,9 @@ class Solution:
     steps = _view("steps", "completed steps (rows 0 … steps are valid)")
     newton_iterations = _view("newton_iterations", "total over all steps")
     max_newton_iterations_per_step = _view("max_newton_iterations_per_step", "")
+    jacobian_factorizations = _view(
+        "jacobian_factorizations",
+        "times the Newton matrix was formed and factored, the set-up's included (0: explicit)")
     mirror_error = _view("mirror_error",
                          "max_k ‖y_k − x_(N−k)‖_∞ of the backward mirror run (NaN if not run)")
     max_balance_error = _view("max_balance_error", "max_k |balance[k]| (a consistency check)")

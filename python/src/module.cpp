@@ -1182,6 +1182,8 @@ void bind(py::module_& m) {
                              [](const Run& r) { return r.solution.newton_iterations; })
       .def_property_readonly("max_newton_iterations_per_step",
                              [](const Run& r) { return r.solution.max_newton_iterations_per_step; })
+      .def_property_readonly("jacobian_factorizations",
+                             [](const Run& r) { return r.solution.jacobian_factorizations; })
       .def_property_readonly("mirror_error", [](const Run& r) { return r.solution.mirror_error; })
       .def_property_readonly("error_estimate",
                              [](const Run& r) { return r.solution.error_estimate.value; })

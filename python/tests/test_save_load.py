@@ -15,6 +15,7 @@ from conftest import BLOWUP, FRACTIONAL, PROBLEM
 
 ARRAYS = ("t", "step", "x", "v", "energy", "dissipated", "balance")
 FIELDS = ("status", "message", "steps", "newton_iterations", "max_newton_iterations_per_step",
+          "jacobian_factorizations",
           "mirror_error", "max_balance_error", "error_estimate", "wall_time", "setup_time",
           "method", "linear_solver", "save_every", "declared_order")
 TIMINGS = ("wall_time", "setup_time")

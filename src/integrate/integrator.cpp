@@ -981,6 +981,7 @@ double Integrator::mirror_error() const {
 Solution Integrator::Impl::result(Solution s, std::size_t rows) const {
   s.status = status;
   s.steps_done = k;
+  s.jacobian_factorizations = stepper->jacobian_factorizations();
   s.message = status == Status::kSuccess || status == Status::kRunning
                   ? std::string()
                   : std::string(message.data());

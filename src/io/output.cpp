@@ -336,6 +336,7 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
       {"max_balance_error", json_number(s.max_balance_error)},
       {"newton_iterations", s.newton_iterations},
       {"max_newton_iterations_per_step", s.max_newton_iterations_per_step},
+      {"jacobian_factorizations", s.jacobian_factorizations},
       {"linear_solver", s.linear_solver},
       {"history", s.history},
       {"history_bytes", s.history_bytes},
@@ -429,6 +430,9 @@ void read_summary(const nlohmann::json& summary, Solution& s, const std::string&
   s.max_balance_error = r.number(summary, "max_balance_error");
   s.newton_iterations = r.count(summary, "newton_iterations");
   s.max_newton_iterations_per_step = r.count(summary, "max_newton_iterations_per_step");
+  // Written before factorisations were counted: 0, as for an explicit scheme.
+  s.jacobian_factorizations =
+      summary.contains("jacobian_factorizations") ? r.count(summary, "jacobian_factorizations") : 0;
   s.linear_solver = r.text(summary, "linear_solver");
   s.history = r.text(summary, "history");
   if (summary.contains("history_exponentials")) {

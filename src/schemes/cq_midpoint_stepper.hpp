@@ -55,6 +55,9 @@ class CqMidpointStepper final : public Stepper {
   [[nodiscard]] bool has_mirror_run() const override { return true; }
   [[nodiscard]] bool mirror_run(MirrorRows& rows) const override;
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
+  [[nodiscard]] std::size_t jacobian_factorizations() const override {
+    return newton_.factorizations();
+  }
   [[nodiscard]] HistoryReport history() const override {
     return history_ ? history_->report() : HistoryReport{};
   }

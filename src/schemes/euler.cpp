@@ -87,6 +87,11 @@ class EulerStepper final : public Stepper {
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
+  [[nodiscard]] std::size_t jacobian_factorizations() const override {
+    // The explicit step only borrows Newton's effective gradient (a linear U's constructor
+    // factors all the same).
+    return implicit_ ? newton_.factorizations() : 0;
+  }
   [[nodiscard]] HistoryReport history() const override {
     return history_ ? history_->report() : HistoryReport{};
   }

@@ -288,6 +288,9 @@ class StageMatrix {
 
   [[nodiscard]] bool needs_hessians() const { return internal_hessians_; }
   [[nodiscard]] bool is_sparse() const { return sparse_; }
+  /// How many times factor() ran (a checkpoint sets it back: set_factorizations).
+  [[nodiscard]] std::size_t factorizations() const { return factorizations_; }
+  void set_factorizations(std::size_t count) { factorizations_ = count; }
 
   /// Forms J = constant part − h b_i ∇²U(X_i, t_i) (internal stages i = 2 … s − 1, columns of
   /// `stages`) + the state force's h b_e (δ_{eu} ∂g/∂x + σ (D_{eu}/h) ∂g/∂v) at the stage
@@ -295,6 +298,7 @@ class StageMatrix {
   /// factors it. False when singular.
   bool factor(const Eigen::MatrixXd& stages, const Eigen::VectorXd& times,
               const Eigen::MatrixXd& velocities) {
+    ++factorizations_;
     if (!sparse_) {
       jacobian_ = constant_;
       for (int i = 1; internal_hessians_ && i + 1 < s_; ++i) {
@@ -370,6 +374,7 @@ class StageMatrix {
   bool internal_hessians_;
   int first_equation_, first_unknown_;
   bool sparse_ = false;
+  std::size_t factorizations_ = 0;
   std::vector<double> hessian_coeff_;  // −h b_i, internal stages
   // Dense.
   Eigen::MatrixXd constant_, jacobian_, hessian_;
@@ -489,6 +494,9 @@ class LobattoStepper final : public Stepper {
   [[nodiscard]] LinearSolver linear_solver() const override {
     return stage_matrix_.is_sparse() ? LinearSolver::kSparse : LinearSolver::kDense;
   }
+  [[nodiscard]] std::size_t jacobian_factorizations() const override {
+    return stage_matrix_.factorizations();
+  }
   [[nodiscard]] HistoryReport history() const override {
     return history_ ? history_->report() : HistoryReport{};
   }
@@ -507,6 +515,8 @@ class LobattoStepper final : public Stepper {
     archive.dense("lobatto.stage_values", cur_.stages);  // stage_values() of the last interval
     archive.number("lobatto.work", work_);
     archive.number("lobatto.supplied", supplied_);
+    std::size_t factorizations = stage_matrix_.factorizations();
+    archive.count("lobatto.factorizations", factorizations);
     if (!linear_) {
       // Simplified Newton keeps the stage matrix of an earlier iterate, possibly of an earlier
       // step: it is formed again at the same stages and times (the same bits), so that the
@@ -523,6 +533,8 @@ class LobattoStepper final : public Stepper {
             "cannot be factored there (corrupt)");
       }
     }
+    // The recorded count: forming the kept matrix again is not a factorisation of the run's.
+    if (archive.loading()) stage_matrix_.set_factorizations(factorizations);
     archive.optional("lobatto.history", history_.get());
   }
 
@@ -1245,6 +1257,9 @@ class SeriesShiftStepper final : public Stepper {
     return diagnostics_ && split_.forcing.empty() ? 0.0 : kNaN;
   }
   [[nodiscard]] LinearSolver linear_solver() const override { return stepper_->linear_solver(); }
+  [[nodiscard]] std::size_t jacobian_factorizations() const override {
+    return stepper_->jacobian_factorizations();
+  }
   [[nodiscard]] HistoryReport history() const override { return stepper_->history(); }
   [[nodiscard]] const Eigen::MatrixXd* stage_values() const override {
     return stepper_->stage_values() != nullptr ? &stages_ : nullptr;

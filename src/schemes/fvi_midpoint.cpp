@@ -98,6 +98,9 @@ class TrapezoidalMidpointStepper final : public Stepper {
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
+  [[nodiscard]] std::size_t jacobian_factorizations() const override {
+    return newton_.factorizations();
+  }
   [[nodiscard]] HistoryReport history() const override {
     return memory_ ? memory_->report() : HistoryReport{};
   }

@@ -171,6 +171,9 @@ class PiTrapezoidStepper final : public Stepper {
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
+  [[nodiscard]] std::size_t jacobian_factorizations() const override {
+    return newton_.factorizations();
+  }
   [[nodiscard]] HistoryReport history() const override {
     return {fft_ ? "fft" : "direct",
             static_cast<std::size_t>(values_d_.size() + values_g_.size() + values_e_.size()) *

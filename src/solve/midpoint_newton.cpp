@@ -205,6 +205,8 @@ void MidpointNewton::visit_state(StateArchive& archive, std::string_view prefix)
   archive.number(name + ".factored_time", factored_time_);
   archive.count(name + ".carry_wait", carry_wait_);
   archive.count(name + ".carry_backoff", carry_backoff_);
+  std::size_t factorizations = factorizations_;
+  archive.count(name + ".factorizations", factorizations);
   // Only the structured backends carry J between calls (a linear J is the constructor's).
   if (archive.loading() && carry_ && !linear_ && backend_ != LinearSolver::kDense) {
     mid_ = factored_mid_;
@@ -215,6 +217,8 @@ void MidpointNewton::visit_state(StateArchive& archive, std::string_view prefix)
     }
     carry_ = true;
   }
+  // The recorded count: forming the carried J again is not a factorisation of the run's.
+  if (archive.loading()) factorizations_ = factorizations;
 }
 
 void MidpointNewton::update_carry(bool carried, bool fast) {

@@ -60,6 +60,7 @@ void expect_same_run(const Solution& a, const Solution& b) {
   EXPECT_TRUE(same_bits(a.balance, b.balance));
   EXPECT_EQ(a.newton_iterations, b.newton_iterations);
   EXPECT_EQ(a.max_newton_iterations_per_step, b.max_newton_iterations_per_step);
+  EXPECT_EQ(a.jacobian_factorizations, b.jacobian_factorizations);
   EXPECT_EQ(std::memcmp(&a.max_balance_error, &b.max_balance_error, sizeof(double)), 0);
   EXPECT_EQ(std::memcmp(&a.mirror_error, &b.mirror_error, sizeof(double)), 0);
   EXPECT_EQ(a.history, b.history);

@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <vector>
 
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/schemes/registry.hpp"
 #include "integrate_test_support.hpp"
 
 namespace fracvi {
@@ -323,6 +325,37 @@ TEST(MethodValue, NameOrderParse) {
   EXPECT_EQ(parse_convention("caputo"), Convention::kCaputo);
   EXPECT_EQ(parse_convention("riemann-liouville"), Convention::kRiemannLiouville);
   EXPECT_FALSE(parse_convention("rl").has_value());
+}
+
+// Solution::jacobian_factorizations counts the Newton matrices formed and factored: the set-up's
+// one for a linear problem (none after it), none for an explicit scheme, one per Newton iteration
+// on the dense path of a nonlinear problem (full Newton), and for a Lobatto FVI's simplified
+// Newton at least one and at most one per iteration. (The banded path's carried J:
+// newton_stopping_test.)
+TEST(Integrator, CountsJacobianFactorizations) {
+  InitialValueProblem linear = pendula(0.75, Convention::kCaputo, kX0, kV0);
+  linear.model.potential = make_quadratic_potential(Eigen::MatrixXd{{3.0, -1.0}, {-1.0, 2.0}});
+  const Solution gl = integrate(linear, fvi_gl());
+  ASSERT_TRUE(gl.ok()) << gl.message;
+  EXPECT_EQ(gl.jacobian_factorizations, 1u);
+  EXPECT_EQ(gl.newton_iterations, linear.steps);
+  const Solution euler = integrate(linear, *parse_method("euler-explicit"));
+  ASSERT_TRUE(euler.ok()) << euler.message;
+  EXPECT_EQ(euler.jacobian_factorizations, 0u);
+
+  const Solution dense = integrate(pendula(0.75, Convention::kCaputo, kX0, kV0), fvi_gl());
+  ASSERT_TRUE(dense.ok()) << dense.message;
+  EXPECT_EQ(dense.linear_solver, "dense");
+  EXPECT_GT(dense.newton_iterations, 200u);
+  EXPECT_EQ(dense.jacobian_factorizations, dense.newton_iterations);
+
+  const Solution lobatto =
+      integrate(pendula(0.75, Convention::kCaputo, kX0, kV0), *parse_method("fvi-lobatto3"));
+  ASSERT_TRUE(lobatto.ok()) << lobatto.message;
+  std::printf("  fvi-lobatto3: %zu factorisations in %zu Newton iterations\n",
+              lobatto.jacobian_factorizations, lobatto.newton_iterations);
+  EXPECT_GE(lobatto.jacobian_factorizations, 1u);
+  EXPECT_LE(lobatto.jacobian_factorizations, lobatto.newton_iterations);
 }
 
 }  // namespace

@@ -38,6 +38,7 @@ void expect_same_fields(const Solution& a, const Solution& b) {
   EXPECT_EQ(a.steps_done, b.steps_done);
   EXPECT_EQ(a.newton_iterations, b.newton_iterations);
   EXPECT_EQ(a.max_newton_iterations_per_step, b.max_newton_iterations_per_step);
+  EXPECT_EQ(a.jacobian_factorizations, b.jacobian_factorizations);
   EXPECT_EQ(a.save_every, b.save_every);
   EXPECT_EQ(a.linear_solver, b.linear_solver);
   EXPECT_EQ(a.history, b.history);

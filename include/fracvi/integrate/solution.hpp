@@ -95,6 +95,11 @@ struct Solution {
   std::size_t steps_done = 0;         ///< completed steps; rows 0 … steps_done are valid
   std::size_t newton_iterations = 0;  ///< total over all steps (1 per step for linear problems)
   std::size_t max_newton_iterations_per_step = 0;
+  /// How many times the implicit step's Newton matrix (M + (h²/4)∇²U, or the Lobatto stage
+  /// matrix) was formed and factored, the set-up's included: 1 for a linear problem, up to one
+  /// per Newton iteration for a nonlinear one (Newton keeps J while it converges fast, also from
+  /// step to step on the banded and sparse paths); 0 for explicit and adaptive schemes.
+  std::size_t jacobian_factorizations = 0;
   std::size_t save_every = 1;  ///< IntegratorOptions::save_every of the run
   /// The grid's h (InitialValueProblem::step_size()): the dense output's interpolant uses it, so
   /// that interpolate() reproduces the run's output_x bit for bit; 0 when unknown (a solution

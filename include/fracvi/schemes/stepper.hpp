@@ -139,6 +139,10 @@ class Stepper {
   /// it says so in its registry row (SchemeInfo::checkpoints); the default refuses with
   /// CheckpointError.
   virtual void visit_state(StateArchive& archive);
+  /// How many times the step's Newton matrix was formed and factored so far, the set-up's
+  /// included (a linear problem: once, in the constructor; 0 for an explicit step).
+  /// Solution::jacobian_factorizations; a checkpoint keeps it.
+  [[nodiscard]] virtual std::size_t jacobian_factorizations() const { return 0; }
   /// Newton iterations of the last step (1 for a linear problem; 0 for an explicit step).
   [[nodiscard]] int last_iterations() const { return last_iterations_; }
 

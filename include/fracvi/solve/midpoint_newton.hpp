@@ -105,7 +105,8 @@ class MidpointNewton {
 
   /// The kept Jacobian's point and whether the next call starts from it (a checkpoint's part of
   /// the solver: it changes the iterates, hence the last bits of a nonlinear step). Records
-  /// `<prefix>.carry`, `.factored_mid`, `.factored_time`, `.carry_wait` and `.carry_backoff`;
+  /// `<prefix>.carry`, `.factored_mid`, `.factored_time`, `.carry_wait`, `.carry_backoff` and
+  /// `.factorizations` (the count so far);
   /// loading forms and factors J at the recorded point again when it is carried.
   void visit_state(StateArchive& archive, std::string_view prefix);
 
