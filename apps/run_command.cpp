@@ -221,10 +221,11 @@ Command add_run_command(CLI::App& parent) {
                     max_error(solution, parse_reference(spec.reference)));
       }
       std::printf(
-          "  newton            %zu iterations (max %zu per step), %zu factorisations, %s linear "
+          "  newton            %zu iterations (max %zu per step), %zu factorisation%s, %s linear "
           "solver\n",
           solution.newton_iterations, solution.max_newton_iterations_per_step,
-          solution.jacobian_factorizations, solution.linear_solver.c_str());
+          solution.jacobian_factorizations, solution.jacobian_factorizations == 1 ? "" : "s",
+          solution.linear_solver.c_str());
       if (solution.history == "fast") {
         std::printf(
             "  damping memory    fast: %zu exponentials + window of %zu lags, eps = %.1e (%s), "
