@@ -196,7 +196,12 @@ class AlongsideMirror {
         return;
       }
     }
-    const bool succeeded = stepper.mirror_run(rows_);  // noexcept in effect: false on a throw
+    bool succeeded =
+        false;  // mirror_run reports a throwing callback as false; a thread must not throw
+    try {
+      succeeded = stepper.mirror_run(rows_);
+    } catch (...) {
+    }
     {
       const std::lock_guard<std::mutex> lock(mutex_);
       succeeded_ = succeeded;
@@ -215,16 +220,15 @@ class AlongsideMirror {
   std::thread thread_;  // last: starts once everything above is constructed
 };
 
-// The stored steps of a run of N steps with output.every = s: 0, s, 2s, …, and N.
-std::vector<std::size_t> stored_steps_of(std::size_t n_steps, std::size_t every) {
+}  // namespace
+
+std::vector<std::size_t> stored_steps(std::size_t steps_done, std::size_t save_every) {
   std::vector<std::size_t> steps;
-  steps.reserve(stored_rows(n_steps, every));
-  for (std::size_t k = 0; k <= n_steps; k += every) steps.push_back(k);
-  if (steps.back() != n_steps) steps.push_back(n_steps);
+  steps.reserve(stored_rows(steps_done, save_every));
+  for (std::size_t k = 0; k < steps_done; k += save_every) steps.push_back(k);
+  steps.push_back(steps_done);
   return steps;
 }
-
-}  // namespace
 
 void check_storage(const InitialValueProblem& problem, const IntegratorOptions& options) {
   if (options.save_every < 1) return;  // validate(options) names it
@@ -365,15 +369,15 @@ struct Integrator::Impl {
   void start_alongside_mirror() {
     if (!options.mirror || !options.mirror_alongside || options.threads == 1 ||
         !options.events.empty() || d >= kMaxAlongsideMirrorDimension ||
-        std::thread::hardware_concurrency() < 2 || !stepper->has_mirror_run()) {
+        std::thread::hardware_concurrency() < 2 || !method.info().has_mirror) {
       return;
     }
     const double bytes = static_cast<double>(stored_rows(n_steps, options.save_every)) *
                          static_cast<double>(d) * sizeof(double);
     if (bytes > kMaxAlongsideMirrorBytes) return;
     try {
-      alongside = std::make_unique<AlongsideMirror>(
-          *stepper, stored_steps_of(n_steps, options.save_every), d);
+      alongside =
+          std::make_unique<AlongsideMirror>(*stepper, stored_steps(n_steps, options.save_every), d);
     } catch (const std::system_error&) {
       alongside.reset();  // no thread: the mirror run after the run
     }

@@ -495,13 +495,6 @@ void read_summary(const nlohmann::json& summary, Solution& s, const std::string&
   s.declared_order = order.get<int>();
 }
 
-std::vector<std::size_t> stored_steps(std::size_t steps_done, std::size_t save_every) {
-  std::vector<std::size_t> steps;
-  for (std::size_t k = 0; k < steps_done; k += save_every) steps.push_back(k);
-  steps.push_back(steps_done);
-  return steps;
-}
-
 void write_trajectory_npz(const std::filesystem::path& file, const Solution& s) {
   const auto rows = static_cast<std::size_t>(s.t.size());
   const auto d = static_cast<std::size_t>(s.x.cols());

@@ -52,7 +52,6 @@ class CqMidpointStepper final : public Stepper {
   [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
-  [[nodiscard]] bool has_mirror_run() const override { return true; }
   [[nodiscard]] bool mirror_run(MirrorRows& rows) const override;
   [[nodiscard]] LinearSolver linear_solver() const override { return newton_.linear_solver(); }
   [[nodiscard]] std::size_t jacobian_factorizations() const override {

@@ -554,7 +554,6 @@ class LobattoStepper final : public Stepper {
   // reversed orientation, where the physical velocity is −ẏ).
   void interval_force(Blocks& b, const Eigen::MatrixXd& current, int last,
                       double velocity_sign = 1.0) const;
-  [[nodiscard]] bool has_mirror_run() const override { return true; }
   [[nodiscard]] bool mirror_run(MirrorRows& rows) const override;
   [[nodiscard]] bool mirror_steps(MirrorRows& rows) const;  // mirror_run but for its catch
 
@@ -1268,7 +1267,6 @@ class SeriesShiftStepper final : public Stepper {
     stepper_->visit_state(archive);
     if (archive.loading()) report(stepper_->step_index());
   }
-  [[nodiscard]] bool has_mirror_run() const override { return true; }
   // The remainder's mirror run, its y shifted by the series as x is (report()): y + S(t) at the
   // mirrored step's time.
   [[nodiscard]] bool mirror_run(MirrorRows& rows) const override {

@@ -104,7 +104,6 @@ class TrapezoidalMidpointStepper final : public Stepper {
   [[nodiscard]] HistoryReport history() const override {
     return memory_ ? memory_->report() : HistoryReport{};
   }
-  [[nodiscard]] bool has_mirror_run() const override { return true; }
   [[nodiscard]] bool mirror_run(MirrorRows& rows) const override;
 
   void visit_state(StateArchive& archive) override {

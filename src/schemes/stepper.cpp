@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <exception>
 #include <limits>
+#include <utility>
 
 #include "fracvi/solve/midpoint_newton.hpp"
 
@@ -64,10 +65,10 @@ Status Stepper::newton_outcome(const internal::NewtonReport& report, const char*
 }
 
 MirrorComparison::MirrorComparison(const RowMatrixXd& x, std::span<const std::size_t> steps,
-                                   const std::function<bool()>& interrupt) noexcept
+                                   std::function<bool()> interrupt) noexcept
     : MirrorRows(steps.first(std::min(steps.size(), static_cast<std::size_t>(x.rows())))),
       x_(x),
-      interrupt_(interrupt) {}
+      interrupt_(std::move(interrupt)) {}
 
 void MirrorComparison::put(std::size_t row, const Eigen::VectorXd& y) {
   const Eigen::Map<const Eigen::VectorXd> x_row(x_.row(static_cast<Eigen::Index>(row)).data(),

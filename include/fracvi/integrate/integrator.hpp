@@ -171,6 +171,11 @@ class Integrator {
   std::unique_ptr<Impl> impl_;
 };
 
+/// The step index of each row the Integrator stores for a run that completed `steps_done` steps
+/// with save_every = s: 0, s, 2s, … below steps_done, and steps_done (trajectory.csv has no
+/// step column; these are its rows).
+std::vector<std::size_t> stored_steps(std::size_t steps_done, std::size_t save_every);
+
 /// Throws ValidationError when the stored trajectory of `problem` with `options` (rows × (16 d +
 /// 40) bytes, allocated up front by the Integrator) would not fit in the machine's physical
 /// memory, with the number and the smallest [output] every that fits in half of it. The

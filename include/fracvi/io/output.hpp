@@ -109,11 +109,6 @@ void write_events_csv(const std::filesystem::path& file, const Solution& solutio
 /// "<key>" <rule>" for a missing field or one of the wrong type.
 void read_summary(const nlohmann::json& summary, Solution& solution, const std::string& what);
 
-/// The step index of each row the Integrator stores for a run that completed `steps_done` steps
-/// with save_every = s: 0, s, 2s, … below steps_done, and steps_done (trajectory.csv has no
-/// step column; these are its rows).
-std::vector<std::size_t> stored_steps(std::size_t steps_done, std::size_t save_every);
-
 /// trajectory.npz: NumPy's archive (io/npz.hpp) of the arrays t, step (int64), x, v, energy,
 /// dissipated, balance as stored, the names and dtypes np.savez gives fracvi.write's.
 void write_trajectory_npz(const std::filesystem::path& file, const Solution& solution);

@@ -68,14 +68,14 @@ class MirrorComparison final : public MirrorRows {
  public:
   /// `x` and `steps` as Stepper::mirror_error's (the rows of both, whichever are fewer).
   MirrorComparison(const RowMatrixXd& x, std::span<const std::size_t> steps,
-                   const std::function<bool()>& interrupt) noexcept;
+                   std::function<bool()> interrupt) noexcept;
   void put(std::size_t row, const Eigen::VectorXd& y) override;
   [[nodiscard]] bool stop() override;
   [[nodiscard]] double error() const noexcept { return error_; }
 
  private:
   const RowMatrixXd& x_;
-  const std::function<bool()>& interrupt_;
+  std::function<bool()> interrupt_;
   double error_ = 0.0;
 };
 
@@ -112,14 +112,12 @@ class Stepper {
   /// fails or is interrupted. mirror_run() compared with the rows as they come.
   [[nodiscard]] double mirror_error(const RowMatrixXd& x, std::span<const std::size_t> steps,
                                     const std::function<bool()>& interrupt = {}) const;
-  /// Whether the scheme has a mirror run (mirror_run below).
-  [[nodiscard]] virtual bool has_mirror_run() const { return false; }
-  /// The backward run of the mirror equation: y at the step mirroring each of rows.steps() handed
-  /// to rows.put(), rows ascending; false when the scheme has none, a backward step fails, a
-  /// callback throws or rows.stop() asks to stop. It needs only the problem, the options and x_1:
-  /// it may run on another thread while step() goes on, from the end of the first step on (the
-  /// Integrator's mirror alongside the run), so it reads nothing step() writes after step 1 and
-  /// shares no workspace with it.
+  /// The backward run of the mirror equation (the schemes with SchemeInfo::has_mirror): y at the
+  /// step mirroring each of rows.steps() handed to rows.put(), rows ascending; false when the
+  /// scheme has none, a backward step fails, a callback throws or rows.stop() asks to stop. It
+  /// needs only the problem, the options and x_1: it may run on another thread while step() goes
+  /// on, from the end of the first step on (the Integrator's mirror alongside the run), so it
+  /// reads nothing step() writes after step 1 and shares no workspace with it.
   [[nodiscard]] virtual bool mirror_run(MirrorRows& rows) const;
 
   /// The stage values of the last step's interval, a d × s block (column a: the state at
