@@ -1,6 +1,7 @@
 // The measured thread count of the fast histories' push (internal/team_chooser.hpp):
-//  * the trial / hold cycle of TeamChooser on synthetic call times (which count it picks, when
-//    it measures again, the untimed warm-up calls, that a requested count is used as given);
+//  * the trial / hold cycle of TeamChooser on synthetic call times and periods (which count it
+//    picks, when it measures again, the untimed warm-up calls, that a requested count is used as
+//    given);
 //  * the choice never changes a result: FastHistory and FastBlockHistory sums with threads = 0
 //    (measured: one thread for the first trial's calls, the team for the second's, then the
 //    faster) are bitwise those of threads = 1 and of a fixed team of 2, over pushes that cover
@@ -8,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstddef>
 #include <random>
 #include <vector>
@@ -97,6 +99,41 @@ TEST(TeamChooser, RequestedCountsAndSmallWorkAreNotMeasured) {
   EXPECT_EQ(team.next(), 1);
 }
 
+// A caller timed by period (FastHistory with its run-ahead thread): each period is attributed to
+// the count of the call that started it. Synthetic clock: a call on the team returns sooner (its
+// own time would favour the team), but the period until the next call is longer (the overlap slows
+// the caller's step) — the period decides.
+TEST(TeamChooser, PeriodsDecideForCallersTimedByPeriod) {
+  using Clock = std::chrono::steady_clock;
+  const auto choose = [](double one_period, double team_period) {
+    TeamChooser team;
+    team.configure(0, 2);
+    Clock::time_point now = Clock::now();
+    std::vector<int> counts;
+    for (int i = 0; i < 2 * kTrial + 1; ++i) {
+      const int threads = team.next_by_period(now);
+      counts.push_back(threads);
+      now += std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(threads == 1 ? one_period : team_period));
+    }
+    // The trials ran one thread, then the team, each for kTrial calls.
+    for (int i = 0; i < 2 * kTrial; ++i) EXPECT_EQ(counts[i], i < kTrial ? 1 : 2) << "call " << i;
+    return counts.back();
+  };
+  EXPECT_EQ(choose(1e-3, 1.2e-3), 1);  // the team's steps are slower: one thread
+  EXPECT_EQ(choose(1e-3, 0.6e-3), 2);  // and the other way round
+  // Negative control: only the first period of each trial differs (a warm-up call), not counted.
+  TeamChooser team;
+  team.configure(0, 2);
+  Clock::time_point now = Clock::now();
+  for (int i = 0; i < 2 * kTrial; ++i) {
+    const int threads = team.next_by_period(now);
+    const bool first_of_trial = i == 0 || i == kTrial;
+    now += std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(
+        first_of_trial ? (threads == 1 ? 1e-3 : 50e-3) : (threads == 1 ? 1e-3 : 0.5e-3)));
+  }
+  EXPECT_EQ(team.next_by_period(now), 2);
+}
 Eigen::MatrixXd rough_input(Eigen::Index rows, Eigen::Index columns) {
   std::mt19937_64 gen(7);
   std::normal_distribution<double> normal(0.0, 1.0);

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <chrono>
 
 namespace fracvi::internal {
 
@@ -20,6 +21,14 @@ namespace fracvi::internal {
 /// Each degree of freedom's arithmetic does not depend on the partition, so the choice never
 /// changes a result. requested ≥ 1 is used as given (above the threshold). No allocation, no system
 /// call but the clock's.
+///
+/// What is timed: the call itself (record() after the call, for_blocks in parallel.hpp), or — for a
+/// caller whose team keeps working after the call returns (FastHistory's run-ahead thread) — the
+/// period from one call's start to the next's (next_by_period()). There the call's own time hides
+/// what the overlap costs the rest of the caller's step: at d = 2·10^4 on the 2-vCPU machine, runs
+/// forced onto the team took 210 or 470–500 µs per step (two modes, run to run) against 390–560 on
+/// one thread, and the call-timed choice kept the team in a run at 0.89× of one thread
+/// (bench/RESULTS.md, "never slower than one core").
 class TeamChooser {
  public:
   static constexpr int kTrialCalls = 16;
@@ -33,6 +42,7 @@ class TeamChooser {
     team_ = std::max(team, 1);
     adaptive_ = requested == 0 && team_ > 1;
     chosen_ = team_;
+    period_start_ = {};
     restart();
   }
   /// Starts a new pair of trials (the calls so far do not represent the ones to come).
@@ -50,6 +60,17 @@ class TeamChooser {
   [[nodiscard]] int next() const {
     if (!adaptive_) return team_;
     return phase_ == Phase::kTrialOne ? 1 : (phase_ == Phase::kTrialTeam ? team_ : chosen_);
+  }
+  /// For callers timed by period: records the period of the previous call (now minus its start, if
+  /// there was one since configure()) and returns the thread count of the call starting `now`. The
+  /// first period after restart() is one of the untimed warm-up calls, so a period that began
+  /// before the restart does not reach the trial.
+  int next_by_period(std::chrono::steady_clock::time_point now) {
+    if (adaptive_ && period_start_ != std::chrono::steady_clock::time_point{}) {
+      record(std::chrono::duration<double>(now - period_start_).count());
+    }
+    period_start_ = now;
+    return next();
   }
   /// The wall time of the call made with next() threads.
   void record(double seconds) {
@@ -86,6 +107,7 @@ class TeamChooser {
   int calls_ = 0;
   double one_ = 0.0, team_time_ = 0.0, held_ = 0.0, hold_ = kHoldSeconds;
   int chosen_ = 1;
+  std::chrono::steady_clock::time_point period_start_{};  // next_by_period(): the last call's start
 };
 
 }  // namespace fracvi::internal
