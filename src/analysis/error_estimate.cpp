@@ -90,7 +90,7 @@ std::optional<RowMatrixXd> companion(const InitialValueProblem& problem, const M
     });
     if (status != Status::kSuccess) {
       why = "the companion run with " + std::to_string(steps) + " steps ended " +
-            std::string(to_string(status)) + ": " + integrator.solution().message;
+            std::string(to_string(status)) + ": " + integrator.take_solution().message;
       return std::nullopt;
     }
   } catch (const ValidationError& e) {

@@ -79,6 +79,10 @@ CompiledDerivatives::CompiledDerivatives(const Expression& f, std::vector<std::s
       if (!builder.is_constant(column[i])) hessian_is_constant_ = false;
     }
   }
+  // A Hessian that simplified to constants is also what a piecewise-linear U leaves: abs, sign,
+  // max, floor … differentiate to piecewise constants and then to 0, although the gradient jumps.
+  // Only a polynomial in wrt() (of degree ≤ 2, then) has a constant Hessian everywhere.
+  if (hessian_is_constant_ && !f.polynomial_degree(wrt_)) hessian_is_constant_ = false;
   std::sort(entries.begin(), entries.end(), [](const Entry& x, const Entry& y) {
     return x.at.row != y.at.row ? x.at.row < y.at.row : x.at.col < y.at.col;
   });

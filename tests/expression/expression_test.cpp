@@ -578,6 +578,18 @@ TEST(ExpressionSparsity, QuadraticPotentialsAreRecognised) {
   EXPECT_FALSE(
       CompiledDerivatives(Expression::parse("x1^2*cos(t)", v), {0, 1}).hessian_is_constant());
   EXPECT_FALSE(CompiledDerivatives(Expression::parse("x1^4", v), {0, 1}).hessian_is_constant());
+  // Piecewise-linear potentials: every Hessian entry simplifies to 0 (abs → sign → 0), but the
+  // gradient jumps, so the Hessian is not constant where it matters (not a "linear" problem).
+  for (const char* kinked : {"abs(x1)", "max(x1, 0) + x2^2", "sign(x1)*x1", "min(x1, x2)",
+                             "2*floor(x1) + x1", "heaviside(x2 - 1)*x2"}) {
+    const CompiledDerivatives c(Expression::parse(kinked, v), {0, 1});
+    EXPECT_TRUE(c.hessian_pattern().empty() || std::string(kinked) == "max(x1, 0) + x2^2")
+        << kinked;
+    EXPECT_FALSE(c.hessian_is_constant()) << kinked;
+  }
+  // A kink in t alone is a coefficient: still quadratic in the positions.
+  EXPECT_TRUE(
+      CompiledDerivatives(Expression::parse("abs(t)*x1 + x2^2", v), {0, 1}).hessian_is_constant());
 
   const std::vector<std::string> x{"x"};
   EXPECT_EQ(Expression::parse("3", x).polynomial_degree(), 0);

@@ -19,6 +19,7 @@
 #include "../support/test_problems.hpp"
 #include "fracvi/analysis/error_estimate.hpp"
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/model/expression_potential.hpp"
 #include "fracvi/schemes/registry.hpp"
 #include "integrate_test_support.hpp"
 
@@ -223,6 +224,29 @@ TEST(ErrorEstimate, NoneWithoutASuccessfulRunOrWhenNotRequested) {
   estimate_error(problem, method, options, sol);
   EXPECT_TRUE(std::isnan(sol.error_estimate.value));
   EXPECT_NE(sol.error_estimate.note.find("did not succeed"), std::string::npos);
+}
+
+// A companion that fails is named with its status and its message (the run's own, not an empty
+// string: the message is formed when the solution is taken). The V-shaped well sqrt(x1² + 1e-8)
+// of the fractional oscillator: fvi-gl with 1000 steps solves every step; with 500 steps the
+// midpoint equation near the kink has no solution, so Newton fails there and the estimate falls
+// back to the 2N companion.
+TEST(ErrorEstimate, AFailedCompanionIsNamedWithItsMessage) {
+  InitialValueProblem problem = test::caputo_oscillator(1000);
+  problem.model.damping = Eigen::MatrixXd::Constant(1, 1, 0.3);
+  problem.model.potential = std::make_shared<const ExpressionPotential>(1, "sqrt(x1^2 + 1e-8)");
+  const Method method = *parse_method("fvi-gl");
+  IntegratorOptions options;
+  options.mirror = false;
+  Solution sol = integrate(problem, method, options);
+  ASSERT_TRUE(sol.ok()) << sol.message;
+  estimate_error(problem, method, options, sol);
+  const std::string& note = sol.error_estimate.note;
+  EXPECT_NE(note.find("the companion run with 500 steps ended newton-failure: Newton did not "
+                      "converge"),
+            std::string::npos)
+      << note;
+  EXPECT_NE(note.find("a companion run with 2N steps instead"), std::string::npos) << note;
 }
 
 // The companions on a second thread are the same runs: the same estimate, bit for bit, and the

@@ -193,8 +193,10 @@ class CompiledDerivatives {
   const std::vector<std::size_t>& gradient_pattern() const { return gradient_pattern_; }
   /// Upper-triangle Hessian entries that are not identically zero, sorted by (row, col).
   const std::vector<HessianEntry>& hessian_pattern() const { return hessian_pattern_; }
-  /// True when every Hessian entry simplified to a constant (U is quadratic in wrt(), with
-  /// coefficients independent of the other variables too): Newton converges in one iteration.
+  /// True when every Hessian entry simplified to a constant and U is a polynomial in wrt() (so
+  /// quadratic, with second-order coefficients independent of the other variables too): Newton
+  /// converges in one iteration. False for piecewise-linear U such as abs(x1) or max(x1, 0),
+  /// whose Hessian is 0 wherever it exists but whose gradient jumps.
   bool hessian_is_constant() const { return hessian_is_constant_; }
   /// Number of tape instructions for value + gradient + Hessian (a cost diagnostic).
   std::size_t tape_size() const;
