@@ -365,6 +365,26 @@ std::optional<int> Expression::polynomial_degree(std::span<const std::size_t> va
   return internal::degree_in(*data_, in_set);
 }
 
+bool Expression::has_kinks_in(std::span<const std::size_t> vars) const {
+  using internal::Op;
+  const internal::ExpressionData& d = *data_;
+  std::vector<char> dep(d.nodes.size(), 0);
+  for (std::size_t i = 0; i < d.nodes.size(); ++i) {
+    const internal::Node& node = d.nodes[i];
+    if (node.op == Op::kConst) continue;
+    const auto ua = static_cast<std::size_t>(node.a), ub = static_cast<std::size_t>(node.b);
+    if (node.op == Op::kVar) {
+      dep[i] = static_cast<char>(std::find(vars.begin(), vars.end(), ub) != vars.end());
+      continue;
+    }
+    dep[i] = static_cast<char>(dep[ua] || (internal::is_binary(node.op) && dep[ub]));
+    const bool kinked = node.op == Op::kAbs || node.op == Op::kSign || node.op == Op::kMin ||
+                        node.op == Op::kMax || node.op == Op::kFloor || node.op == Op::kHeaviside;
+    if (kinked && dep[i]) return true;
+  }
+  return false;
+}
+
 bool Expression::is_polynomial_of_degree_at_most(int degree) const {
   const auto d = polynomial_degree();
   return d && *d <= degree;

@@ -75,6 +75,10 @@ void validate(const IntegratorOptions& options) {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr const char* kKinkHint =
+    "the potential has kinks in x (abs, sign, min, max, floor or heaviside of a position); where "
+    "its gradient jumps, the step's implicit equation can have no solution: smooth the kink, e.g. "
+    "sqrt(x^2 + d^2) for abs(x) (docs/problem-file.md)";
 
 InitialValueProblem validated(InitialValueProblem problem, const Method& method,
                               const IntegratorOptions& options) {
@@ -855,7 +859,14 @@ struct Integrator::Impl {
     sol.newton_iterations += iterations;
     sol.max_newton_iterations_per_step = std::max(sol.max_newton_iterations_per_step, iterations);
     if (s != Status::kSuccess) {
-      return fail(s, stepper->failure_message(), stepper->failure_detail());
+      // A Newton failure on a potential with kinks: most likely a step whose midpoint is at one,
+      // where the implicit equation has no solution (docs/problem-file.md) — say so.
+      const char* detail = stepper->failure_detail();
+      if (s == Status::kNewtonFailure && detail[0] == '\0' && problem.model.potential &&
+          problem.model.potential->has_kinks()) {
+        detail = kKinkHint;
+      }
+      return fail(s, stepper->failure_message(), detail);
     }
     ++k;
     if (k == 1 && alongside) alongside->open();  // x_1 is known: the mirror run can start

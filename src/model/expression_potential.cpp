@@ -40,6 +40,7 @@ ExpressionPotential::ExpressionPotential(Eigen::Index dimension, const std::stri
     : dimension_(dimension),
       derivatives_(Expression::parse(potential, all_names(dimension)), position_indices(dimension)),
       time_dependent_(derivatives_.expression().depends_on(static_cast<std::size_t>(dimension))),
+      kinks_(derivatives_.expression().has_kinks_in(derivatives_.wrt())),
       id_(next_id()) {}
 
 ExpressionPotential::Scratch& ExpressionPotential::scratch(

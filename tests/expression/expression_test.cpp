@@ -586,7 +586,10 @@ TEST(ExpressionSparsity, QuadraticPotentialsAreRecognised) {
     EXPECT_TRUE(c.hessian_pattern().empty() || std::string(kinked) == "max(x1, 0) + x2^2")
         << kinked;
     EXPECT_FALSE(c.hessian_is_constant()) << kinked;
+    EXPECT_TRUE(c.expression().has_kinks_in(positions)) << kinked;
   }
+  EXPECT_FALSE(quad.has_kinks_in(positions));
+  EXPECT_FALSE(Expression::parse("sqrt(x1^2 + 1e-6) + abs(t)*x2", v).has_kinks_in(positions));
   // A kink in t alone is a coefficient: still quadratic in the positions.
   EXPECT_TRUE(
       CompiledDerivatives(Expression::parse("abs(t)*x1 + x2^2", v), {0, 1}).hessian_is_constant());

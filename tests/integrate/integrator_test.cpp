@@ -167,6 +167,7 @@ TEST(Integrator, NewtonFailureKeepsPartialTrajectory) {
   EXPECT_NE(sol.message.find("Newton did not converge"), std::string::npos);
   EXPECT_NE(sol.message.find("step 6"), std::string::npos);
   EXPECT_NE(sol.message.find("t = 2.4"), std::string::npos);
+  EXPECT_EQ(sol.message.find("kinks"), std::string::npos);  // a smooth U: no such hint
   ASSERT_EQ(sol.x.rows(), 6);
   EXPECT_TRUE(sol.x.allFinite());
   EXPECT_TRUE(sol.v.allFinite());
@@ -200,6 +201,7 @@ TEST(Integrator, AKinkedPotentialIsSolvedAndCheckedLikeANonlinearOne) {
   EXPECT_EQ(sol.status, Status::kNewtonFailure) << sol.message;
   EXPECT_EQ(sol.steps_done, 211u);  // measured: x_212's midpoint is at the kink
   EXPECT_NE(sol.message.find("Newton did not converge"), std::string::npos) << sol.message;
+  EXPECT_NE(sol.message.find("the potential has kinks in x"), std::string::npos) << sol.message;
   EXPECT_TRUE(sol.x.allFinite());
   // The steps before the kink are the linear path's: away from it both solve the same equation.
   InitialValueProblem smooth = p;

@@ -121,6 +121,10 @@ class Expression {
   /// degree 2 in {x} (a linear equation of motion with a time-dependent force) and none in {x, t}.
   std::optional<int> polynomial_degree(std::span<const std::size_t> vars) const;
   bool is_polynomial_of_degree_at_most(int degree) const;
+  /// True when a function whose derivative jumps — abs, sign, min, max, floor, heaviside — is
+  /// applied to something that depends on one of `vars`: the expression may have kinks (or jumps)
+  /// in them. Structural: abs(x)^2 counts, although its derivative is continuous.
+  bool has_kinks_in(std::span<const std::size_t> vars) const;
 
   /// The expression as a finite sum Σ_j c_j (v − origin)^{γ_j} of power laws in the variable
   /// v = variables()[var] (no other variable may appear), γ_j real and increasing, c_j ≠ 0 (0: no

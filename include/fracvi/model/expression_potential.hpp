@@ -35,6 +35,8 @@ class ExpressionPotential final : public Potential {
     return derivatives_.hessian_is_constant();
   }
   [[nodiscard]] bool is_time_dependent() const override { return time_dependent_; }
+  /// Expression::has_kinks_in the positions x1..xd.
+  [[nodiscard]] bool has_kinks() const override { return kinks_; }
   /// The engine's symbolic Hessian pattern: a chain of springs has O(d) entries.
   [[nodiscard]] bool has_sparse_hessian() const override { return true; }
   [[nodiscard]] std::vector<HessianEntry> hessian_pattern() const override;
@@ -57,6 +59,7 @@ class ExpressionPotential final : public Potential {
   Eigen::Index dimension_;
   CompiledDerivatives derivatives_;
   bool time_dependent_;
+  bool kinks_;
   std::uint64_t id_;  // never reused, unlike the object's address
 };
 

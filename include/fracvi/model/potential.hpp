@@ -51,6 +51,11 @@ class Potential {
   /// linear solve per step.
   [[nodiscard]] virtual bool has_constant_hessian() const { return false; }
 
+  /// True when U is built with functions whose derivative jumps in x (abs, sign, min, max,
+  /// floor, heaviside of a position): where ∇U jumps, a step's implicit equation can have no
+  /// solution, and a Newton failure there names that cause (integrator.cpp). The default: no.
+  [[nodiscard]] virtual bool has_kinks() const { return false; }
+
   /// False when U does not depend on t. Only the energy bookkeeping uses it: for a time-dependent
   /// U the work of the explicit time dependence, Σ [U(x̄_k, t_{k+1}) − U(x̄_k, t_k)], enters the
   /// dissipated work (two extra value() calls per step). The default is the safe answer.
