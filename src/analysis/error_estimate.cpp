@@ -121,7 +121,8 @@ std::optional<RowMatrixXd> first_steps(const InitialValueProblem& problem, const
     });
     if (status != Status::kSuccess) {
       why = "the run over the first " + std::to_string(m) + " steps with h/" +
-            std::to_string(refine) + " ended " + std::string(to_string(status));
+            std::to_string(refine) + " ended " + std::string(to_string(status)) + ": " +
+            integrator.take_solution().message;
       return std::nullopt;
     }
   } catch (const ValidationError& e) {

@@ -368,13 +368,20 @@ std::optional<int> Expression::polynomial_degree(std::span<const std::size_t> va
 bool Expression::has_kinks_in(std::span<const std::size_t> vars) const {
   using internal::Op;
   const internal::ExpressionData& d = *data_;
+  std::vector<bool> in_set(d.variables.size(), false);
+  for (std::size_t v : vars) {
+    if (v >= in_set.size())
+      throw std::invalid_argument("Expression::has_kinks_in: variable index " + std::to_string(v) +
+                                  " out of range");
+    in_set[v] = true;
+  }
   std::vector<char> dep(d.nodes.size(), 0);
   for (std::size_t i = 0; i < d.nodes.size(); ++i) {
     const internal::Node& node = d.nodes[i];
     if (node.op == Op::kConst) continue;
     const auto ua = static_cast<std::size_t>(node.a), ub = static_cast<std::size_t>(node.b);
     if (node.op == Op::kVar) {
-      dep[i] = static_cast<char>(std::find(vars.begin(), vars.end(), ub) != vars.end());
+      dep[i] = static_cast<char>(in_set[ub]);
       continue;
     }
     dep[i] = static_cast<char>(dep[ua] || (internal::is_binary(node.op) && dep[ub]));
