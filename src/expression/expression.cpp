@@ -354,27 +354,32 @@ std::optional<int> Expression::polynomial_degree() const {
   return internal::degree_in(*data_, std::vector<bool>(data_->variables.size(), true));
 }
 
-std::optional<int> Expression::polynomial_degree(std::span<const std::size_t> vars) const {
-  std::vector<bool> in_set(data_->variables.size(), false);
+namespace {
+
+// The variables `vars` as a mask over all of the expression's variables; `who` names the caller
+// in the error for an index out of range.
+std::vector<bool> variable_set(const ExpressionData& d, std::span<const std::size_t> vars,
+                               const char* who) {
+  std::vector<bool> in_set(d.variables.size(), false);
   for (std::size_t v : vars) {
     if (v >= in_set.size())
-      throw std::invalid_argument("Expression::polynomial_degree: variable index " +
+      throw std::invalid_argument(std::string("Expression::") + who + ": variable index " +
                                   std::to_string(v) + " out of range");
     in_set[v] = true;
   }
-  return internal::degree_in(*data_, in_set);
+  return in_set;
+}
+
+}  // namespace
+
+std::optional<int> Expression::polynomial_degree(std::span<const std::size_t> vars) const {
+  return internal::degree_in(*data_, variable_set(*data_, vars, "polynomial_degree"));
 }
 
 bool Expression::has_kinks_in(std::span<const std::size_t> vars) const {
   using internal::Op;
   const internal::ExpressionData& d = *data_;
-  std::vector<bool> in_set(d.variables.size(), false);
-  for (std::size_t v : vars) {
-    if (v >= in_set.size())
-      throw std::invalid_argument("Expression::has_kinks_in: variable index " + std::to_string(v) +
-                                  " out of range");
-    in_set[v] = true;
-  }
+  const std::vector<bool> in_set = variable_set(d, vars, "has_kinks_in");
   std::vector<char> dep(d.nodes.size(), 0);
   for (std::size_t i = 0; i < d.nodes.size(); ++i) {
     const internal::Node& node = d.nodes[i];

@@ -589,6 +589,9 @@ TEST(ExpressionSparsity, QuadraticPotentialsAreRecognised) {
     EXPECT_TRUE(c.expression().has_kinks_in(positions)) << kinked;
   }
   EXPECT_FALSE(quad.has_kinks_in(positions));
+  const std::size_t out_of_range[] = {3};
+  EXPECT_THROW((void)quad.has_kinks_in(out_of_range), std::invalid_argument);
+  EXPECT_THROW((void)quad.polynomial_degree(out_of_range), std::invalid_argument);
   EXPECT_FALSE(Expression::parse("sqrt(x1^2 + 1e-6) + abs(t)*x2", v).has_kinks_in(positions));
   // A kink in t alone is a coefficient: still quadratic in the positions.
   EXPECT_TRUE(
