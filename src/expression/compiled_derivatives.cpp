@@ -107,6 +107,7 @@ CompiledDerivatives::Workspace CompiledDerivatives::make_workspace() const {
   ws.slots_.assign(program_->num_slots, 0.0);
   internal::fill_constants(*program_, ws.slots_);
   ws.owner_ = program_.get();
+  ws.variables_ = program_->num_variables;
   return ws;
 }
 
@@ -125,17 +126,28 @@ double CompiledDerivatives::evaluate(std::span<const double> values, Workspace& 
   return s[program_->value_slot];
 }
 
-double CompiledDerivatives::evaluate(std::span<const double> values, std::span<double> gradient,
-                                     Workspace& ws) const {
+const double* CompiledDerivatives::run_gradient(std::span<const internal::Instruction> code,
+                                                std::span<const double> values,
+                                                std::span<double> gradient, Workspace& ws) const {
   check(values, ws);
   if (gradient.size() != gradient_size())
     throw std::invalid_argument("CompiledDerivatives: gradient has size " +
                                 std::to_string(gradient.size()) + ", expected " +
                                 std::to_string(gradient_size()));
   double* s = ws.slots_.data();
-  internal::run(*program_, program_->gradient_code, values.data(), s);
+  internal::run(*program_, code, values.data(), s);
   for (std::size_t k = 0; k < gradient.size(); ++k) gradient[k] = s[program_->gradient_slots[k]];
-  return s[program_->value_slot];
+  return s;
+}
+
+double CompiledDerivatives::evaluate(std::span<const double> values, std::span<double> gradient,
+                                     Workspace& ws) const {
+  return run_gradient(program_->gradient_code, values, gradient, ws)[program_->value_slot];
+}
+
+void CompiledDerivatives::gradient(std::span<const double> values, std::span<double> gradient,
+                                   Workspace& ws) const {
+  run_gradient(program_->gradient_only_code, values, gradient, ws);
 }
 
 double CompiledDerivatives::evaluate(std::span<const double> values, std::span<double> gradient,

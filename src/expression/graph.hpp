@@ -246,7 +246,8 @@ struct Program {
   std::size_t num_variables = 0;
   std::size_t num_slots = 0;
   std::vector<std::pair<std::int32_t, double>> constants;
-  std::vector<Instruction> value_code, gradient_code, hessian_code;
+  // gradient_only_code: the gradient without the value's own instructions (a potential's force).
+  std::vector<Instruction> value_code, gradient_code, gradient_only_code, hessian_code;
   std::int32_t value_slot = 0;
   std::vector<std::int32_t> gradient_slots;  // one per gradient coordinate (a zero slot if zero)
   std::vector<std::int32_t> hessian_slots;   // one per hessian_pattern() entry
@@ -256,7 +257,7 @@ Program compile(const std::vector<Node>& nodes, std::size_t num_variables, NodeI
                 std::span<const NodeId> gradient, std::span<const NodeId> hessian);
 
 void fill_constants(const Program& program, std::span<double> slots);
-/// Copies the variables into their slots and runs `code`.
+/// Copies the variables into their slots (unless `values` are the slots) and runs `code`.
 void run(const Program& program, std::span<const Instruction> code, const double* values,
          double* slots);
 

@@ -49,6 +49,7 @@ Program compile(const std::vector<Node>& nodes, std::size_t num_variables, NodeI
   }
   emit(reachable(nodes, std::span(roots).first(1)), p.value_code);
   emit(reachable(nodes, std::span(roots).first(num_value_gradient)), p.gradient_code);
+  emit(reachable(nodes, std::span(roots).subspan(1, gradient.size())), p.gradient_only_code);
   emit(all, p.hessian_code);
 
   const auto slot_of = [&](NodeId id) { return slot[static_cast<std::size_t>(id)]; };
@@ -64,8 +65,11 @@ void fill_constants(const Program& program, std::span<double> slots) {
 
 void run(const Program& program, std::span<const Instruction> code, const double* values,
          double* s) {
-  // A plain loop: typical potentials have a handful of variables, too few for memmove.
-  for (std::size_t i = 0; i < program.num_variables; ++i) s[i] = values[i];
+  // A plain loop: typical potentials have a handful of variables, too few for memmove. Values
+  // already in the slots (CompiledDerivatives::Workspace::values) are not copied.
+  if (values != s) {
+    for (std::size_t i = 0; i < program.num_variables; ++i) s[i] = values[i];
+  }
   for (const Instruction& in : code) {
     const double x = s[in.a];
     double r;

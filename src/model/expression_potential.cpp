@@ -57,7 +57,6 @@ ExpressionPotential::Scratch& ExpressionPotential::scratch(
     auto [it, inserted] = per_object.try_emplace(id_);
     Scratch& fresh = it->second;
     if (inserted) {
-      fresh.args.resize(static_cast<std::size_t>(dimension_) + 1);
       fresh.gradient.resize(static_cast<std::size_t>(dimension_));
       fresh.workspace = derivatives_.make_workspace();
     }
@@ -65,27 +64,29 @@ ExpressionPotential::Scratch& ExpressionPotential::scratch(
     last = &fresh;
   }
   Scratch& s = *last;
-  for (Eigen::Index i = 0; i < dimension_; ++i) s.args[static_cast<std::size_t>(i)] = x[i];
-  s.args.back() = t;
+  const std::span<double> args = s.workspace.values();
+  for (Eigen::Index i = 0; i < dimension_; ++i) args[static_cast<std::size_t>(i)] = x[i];
+  args.back() = t;
   return s;
 }
 
 double ExpressionPotential::value(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const {
   Scratch& s = scratch(x, t);
-  return derivatives_.evaluate(s.args, s.workspace);
+  return derivatives_.evaluate(s.workspace.values(), s.workspace);
 }
 
 void ExpressionPotential::gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
                                    Eigen::Ref<Eigen::VectorXd> g) const {
   Scratch& s = scratch(x, t);
-  derivatives_.evaluate(s.args, std::span<double>(g.data(), static_cast<std::size_t>(g.size())),
+  derivatives_.gradient(s.workspace.values(),
+                        std::span<double>(g.data(), static_cast<std::size_t>(g.size())),
                         s.workspace);
 }
 
 void ExpressionPotential::hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
                                   Eigen::Ref<Eigen::MatrixXd> H) const {
   Scratch& s = scratch(x, t);
-  derivatives_.evaluate_dense(s.args, s.gradient, H, s.workspace);
+  derivatives_.evaluate_dense(s.workspace.values(), s.gradient, H, s.workspace);
 }
 
 std::vector<Potential::HessianEntry> ExpressionPotential::hessian_pattern() const {
@@ -100,7 +101,7 @@ std::vector<Potential::HessianEntry> ExpressionPotential::hessian_pattern() cons
 void ExpressionPotential::hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
                                          std::span<double> values) const {
   Scratch& s = scratch(x, t);
-  derivatives_.evaluate(s.args, s.gradient, values, s.workspace);
+  derivatives_.evaluate(s.workspace.values(), s.gradient, values, s.workspace);
 }
 
 namespace {

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
@@ -794,6 +795,7 @@ TEST(ExpressionEvaluation, RepeatedEvaluationDoesNotAllocate) {
     x[k % d] += 1e-3;
     sink += c.evaluate(x, ws);
     sink += c.evaluate(x, g, ws);
+    c.gradient(x, g, ws);
     sink += c.evaluate(x, g, hv, ws);
     sink += c.evaluate_dense(x, g, H, ws);
     sink += c.evaluate(x, g, hv);  // the object's own workspace
@@ -801,6 +803,36 @@ TEST(ExpressionEvaluation, RepeatedEvaluationDoesNotAllocate) {
   }
   EXPECT_EQ(g_allocations.load() - before, 0);
   EXPECT_TRUE(std::isfinite(sink));
+}
+
+// gradient() runs the gradient's instructions without the value's: the same gradient bit for bit
+// as evaluate(values, gradient) — also where a gradient entry is the value itself (exp), a
+// variable (x1*x2), a constant or zero — from values copied in or written into the workspace's
+// own variable slots.
+TEST(ExpressionEvaluation, GradientOnlyEqualsTheGradientOfEvaluateBitForBit) {
+  const std::vector<std::string> vars{"x1", "x2", "x3", "t"};
+  for (const char* text : {"2*x1^2", "exp(x1) + x1*x2 + 3*x3", "0.5*(x1 - x2)^2*cos(t) + x2^4",
+                           "sqrt(x1^2 + x2^2 + 0.1) - sin(t*x3)", "x2"}) {
+    SCOPED_TRACE(text);
+    const CompiledDerivatives c(Expression::parse(text, vars), {0, 1, 2});
+    // Separate workspaces: slots left by evaluate() cannot stand in for gradient()'s own work.
+    auto ws = c.make_workspace(), ws_only = c.make_workspace(), own = c.make_workspace();
+    ASSERT_EQ(own.values().size(), vars.size());
+    for (int k = 0; k < 50; ++k) {
+      const std::vector<double> x{0.3 + 0.07 * k, -1.1 + 0.05 * k, 0.2 * k, 0.01 * k};
+      std::vector<double> full(3), only(3, -7.0), in_place(3, -7.0);
+      const double value = c.evaluate(x, full, ws);
+      c.gradient(x, only, ws_only);
+      std::copy(x.begin(), x.end(), own.values().begin());
+      c.gradient(own.values(), in_place, own);
+      EXPECT_EQ(only, full);
+      EXPECT_EQ(in_place, full);
+      EXPECT_EQ(c.evaluate(own.values(), own), value);  // the slots still hold x
+    }
+    std::vector<double> wrong(2), right(3);
+    EXPECT_THROW(c.gradient(std::vector<double>(4, 0.0), wrong, ws), std::invalid_argument);
+    EXPECT_THROW(c.gradient(std::vector<double>(3, 0.0), right, ws), std::invalid_argument);
+  }
 }
 
 TEST(ExpressionEvaluation, ConstObjectWithPerThreadWorkspacesIsThreadSafe) {

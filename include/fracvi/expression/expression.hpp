@@ -45,6 +45,7 @@ namespace fracvi {
 namespace internal {
 struct ExpressionData;
 struct Program;
+struct Instruction;
 }  // namespace internal
 
 /// A formula that could not be parsed. what() is a multi-line message: the reason, the
@@ -176,9 +177,14 @@ class CompiledDerivatives {
   class Workspace {
    public:
     Workspace() = default;
+    /// The variables' own slots (num_variables() of them): values written here and passed
+    /// back to evaluate() or gradient() are not copied again (a formula evaluated several times
+    /// per step at d = 1 spends as much on copies as on its tape).
+    std::span<double> values() { return {slots_.data(), variables_}; }
 
    private:
     friend class CompiledDerivatives;
+    std::size_t variables_ = 0;
     std::vector<double> slots_;
     const internal::Program* owner_ = nullptr;
   };
@@ -211,6 +217,9 @@ class CompiledDerivatives {
   double evaluate(std::span<const double> values, Workspace& ws) const;
   /// Value and dense gradient (size gradient_size(); structural zeros are written as 0).
   double evaluate(std::span<const double> values, std::span<double> gradient, Workspace& ws) const;
+  /// Dense gradient only: the value's own instructions are skipped (the same gradient, bit for
+  /// bit, as the overload above).
+  void gradient(std::span<const double> values, std::span<double> gradient, Workspace& ws) const;
   /// Value, dense gradient, and the Hessian entries in the order of hessian_pattern().
   double evaluate(std::span<const double> values, std::span<double> gradient,
                   std::span<double> hessian_values, Workspace& ws) const;
@@ -242,6 +251,10 @@ class CompiledDerivatives {
   }
   // The exception check() throws: a wrong number of values, else a workspace of another object.
   [[noreturn]] void throw_mismatch(std::size_t values) const;
+  // Runs `code` (which computes the gradient) and copies the gradient out; returns the slots.
+  const double* run_gradient(std::span<const internal::Instruction> code,
+                             std::span<const double> values, std::span<double> gradient,
+                             Workspace& ws) const;
 
   Expression f_;
   std::vector<std::size_t> wrt_;

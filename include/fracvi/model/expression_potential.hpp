@@ -46,11 +46,10 @@ class ExpressionPotential final : public Potential {
   [[nodiscard]] const Expression& expression() const { return derivatives_.expression(); }
 
  private:
-  // Fills this thread's argument buffer (x1..xd, t) and returns it with its workspace. The
-  // workspace is per thread and per object, so concurrent const calls are safe and, after the
-  // first call on a thread, allocation-free.
+  // Writes x1..xd, t into this thread's workspace (its variable slots, Workspace::values) and
+  // returns it. The workspace is per thread and per object, so concurrent const calls are safe
+  // and, after the first call on a thread, allocation-free.
   struct Scratch {
-    std::vector<double> args;
     std::vector<double> gradient;
     CompiledDerivatives::Workspace workspace;
   };
