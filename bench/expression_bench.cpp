@@ -156,6 +156,38 @@ void BM_DuffingValue_Hand(benchmark::State& state) {
   }
 }
 
+// --- The force ∇U alone (what Newton evaluates every iteration): with and without the value ---
+
+// Arg 0: CompiledDerivatives::evaluate(values, gradient) (value and gradient on one tape);
+// arg 1: CompiledDerivatives::gradient (the gradient's instructions only).
+void force(benchmark::State& state, const std::string& text, std::vector<std::string> vars) {
+  const std::size_t n = vars.size();
+  const CompiledDerivatives c(Expression::parse(text, std::move(vars)));
+  auto ws = c.make_workspace();
+  const auto points = random_points(n);
+  std::vector<double> g(n);
+  const bool gradient_only = state.range(0) == 1;
+  std::size_t i = 0;
+  for (auto _ : state) {
+    if (gradient_only) {
+      c.gradient(points[i++ % kPoints], g, ws);
+    } else {
+      benchmark::DoNotOptimize(c.evaluate(points[i++ % kPoints], g, ws));
+    }
+    benchmark::DoNotOptimize(g.data());
+    benchmark::ClobberMemory();
+  }
+}
+void BM_Force_Quadratic(benchmark::State& state) {
+  force(state, "2*x1^2", {"x1"});
+}
+void BM_Force_Duffing(benchmark::State& state) {
+  force(state, "x1^4/4 - x1^2/2", {"x1"});
+}
+void BM_Force_Coupled2D(benchmark::State& state) {
+  force(state, kCoupled, {"x1", "x2"});
+}
+
 BENCHMARK(BM_Duffing_Engine);
 BENCHMARK(BM_Duffing_Hand);
 BENCHMARK(BM_Pendulum_Engine);
@@ -166,6 +198,9 @@ BENCHMARK(BM_Chain100_Engine);
 BENCHMARK(BM_Chain100_Hand);
 BENCHMARK(BM_DuffingValue_Expression);
 BENCHMARK(BM_DuffingValue_Hand);
+BENCHMARK(BM_Force_Quadratic)->Arg(0)->Arg(1);
+BENCHMARK(BM_Force_Duffing)->Arg(0)->Arg(1);
+BENCHMARK(BM_Force_Coupled2D)->Arg(0)->Arg(1);
 
 }  // namespace
 
