@@ -102,7 +102,8 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
       history_->push(x_tilde_);
       history_->sum(sum_);
       // F_0 stands for the impulse over [t_0, t_½]: (2/h)·∫ of P's force there.
-      if (memory_start_ == MemoryStart::kTaylorSplit) add_polynomial_force(0, sum_);
+      if (memory_start_ == MemoryStart::kTaylorSplit)
+        add_polynomial_force(0, problem_.x0, problem_.v0, sum_);
       force_matrix_.multiply(sum_, force_);
       mass_solver_.inverse_damping(sum_, w_);
     }
@@ -132,7 +133,8 @@ void CqMidpointStepper::tilde(const Eigen::Ref<const Eigen::VectorXd>& x, std::s
   }
 }
 
-void CqMidpointStepper::add_polynomial_force(std::size_t k, Eigen::VectorXd& s) const {
+void CqMidpointStepper::add_polynomial_force(std::size_t k, const Eigen::VectorXd& x0,
+                                             const Eigen::VectorXd& v0, Eigen::VectorXd& s) const {
   // P's force at node k in the x-equation M(x_{k+1} − 2x_k + x_{k−1})/h² + F_k + … = 0 is the
   // second difference of H: (H(t_{k+1}) − 2H(t_k) + H(t_{k−1}))/h², which the scheme integrates
   // exactly (P's part of the solution is reproduced to round-off, whatever the singularity of its
@@ -143,8 +145,8 @@ void CqMidpointStepper::add_polynomial_force(std::size_t k, Eigen::VectorXd& s) 
     const double second = k == 0 ? 2.0 : second_difference_of_power(k, e);  // × h^e
     s += (poly_scale_ * a * std::pow(h_, e) * second) * vec;
   };
-  if (jx_ != 0.0) add(jx_, ex_, problem_.x0);
-  if (jv_ != 0.0) add(jv_, ev_, problem_.v0);
+  if (jx_ != 0.0) add(jx_, ex_, x0);
+  if (jv_ != 0.0) add(jv_, ev_, v0);
 }
 
 Status CqMidpointStepper::advance() {
@@ -210,7 +212,8 @@ Status CqMidpointStepper::advance() {
     tilde(x_next_, k + 1, x_tilde_);
     history_->push(x_tilde_);
     history_->sum(sum_);
-    if (memory_start_ == MemoryStart::kTaylorSplit) add_polynomial_force(k + 1, sum_);
+    if (memory_start_ == MemoryStart::kTaylorSplit)
+      add_polynomial_force(k + 1, problem_.x0, problem_.v0, sum_);
   }
   if (damped_) force_matrix_.multiply(sum_, force_next_);
   for (Eigen::Index i = 0; i < d_; ++i) p_[i] = p_minus_[i] - (0.5 * h_) * force_next_[i];
@@ -289,20 +292,22 @@ void CqMidpointStepper::visit_state(StateArchive& archive) {
 // The y-equation (mirror_run.hpp) with D_k = R h^{−2α} Σ_{m=0}^{N−k} ω_m ỹ_{k+m}, all of it known
 // (explicit memory): a forward-running history fed with ỹ_N, ỹ_{N−1}, …, ỹ_j = y_j − y_N −
 // (t_N − t_j) v_0 (the shift of the reversed clock); kTaylorSplit adds P's force of the mirrored
-// node.
+// node. The damping reads its own copies of R h^{−2α}, x_0 and v_0 (mirror_run.hpp).
 bool CqMidpointStepper::mirror_run(MirrorRows& rows) const {
   struct Damping {
     const CqMidpointStepper& self;
     std::unique_ptr<History> hist;
     Eigen::VectorXd shifted, s;
     std::size_t n;
+    ModelMatrix force_matrix = self.force_matrix_;
+    Eigen::VectorXd x0 = self.problem_.x0, v0 = self.problem_.v0;
     void push(const Eigen::VectorXd& y, std::size_t j) {
       // ỹ_j in one element loop, the same roundings as y, then −x_0, then −(t_N − t_j) v_0.
       const double span = static_cast<double>(n - j) * self.h_;
       for (Eigen::Index i = 0; i < self.d_; ++i) {
         double value = y[i];
-        if (self.shift_x0_) value -= self.problem_.x0[i];
-        if (self.shift_v0_) value -= span * self.problem_.v0[i];
+        if (self.shift_x0_) value -= x0[i];
+        if (self.shift_v0_) value -= span * v0[i];
         shifted[i] = value;
       }
       hist->push(shifted);
@@ -320,8 +325,9 @@ bool CqMidpointStepper::mirror_run(MirrorRows& rows) const {
       if (!self.damped_) return;
       hist->sum(s);
       // Node k mirrors the x-index N − k.
-      if (self.memory_start_ == MemoryStart::kTaylorSplit) self.add_polynomial_force(n - k, s);
-      self.force_matrix_.multiply(s, out);
+      if (self.memory_start_ == MemoryStart::kTaylorSplit)
+        self.add_polynomial_force(n - k, x0, v0, s);
+      force_matrix.multiply(s, out);
     }
     void accept(std::size_t k, const Eigen::VectorXd& y_km1, const Eigen::VectorXd&) {
       if (self.damped_) push(y_km1, k - 1);

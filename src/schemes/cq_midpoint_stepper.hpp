@@ -75,8 +75,10 @@ class CqMidpointStepper final : public Stepper {
   }
   // x̃_i = x_i − (shift of the initial data), for index i of the clock running from t_0.
   void tilde(const Eigen::Ref<const Eigen::VectorXd>& x, std::size_t i, Eigen::VectorXd& out) const;
-  // kTaylorSplit: adds P's damping force at node k to the history sum s (units F = R h^{−2α} s).
-  void add_polynomial_force(std::size_t k, Eigen::VectorXd& s) const;
+  // kTaylorSplit: adds P's damping force at node k to the history sum s (units F = R h^{−2α} s),
+  // P from the initial data x0, v0 (the problem's, or the mirror run's own copies).
+  void add_polynomial_force(std::size_t k, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                            Eigen::VectorXd& s) const;
   void damping_force(Eigen::VectorXd& f_out, Eigen::VectorXd& w_out);
 
   const InitialValueProblem& problem_;

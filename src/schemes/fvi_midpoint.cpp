@@ -139,9 +139,14 @@ class TrapezoidalMidpointStepper final : public Stepper {
   }
   // P(t_{j+½}) = x_0 + (j + ½) h v_0, subtracted from x̄_j.
   void subtract_polynomial_midpoint(std::size_t j, Eigen::VectorXd& v) const {
+    subtract_polynomial_midpoint(j, problem_.x0, problem_.v0, v);
+  }
+  // The same with the initial data x0, v0 given (the mirror run's own copies).
+  void subtract_polynomial_midpoint(std::size_t j, const Eigen::VectorXd& x0,
+                                    const Eigen::VectorXd& v0, Eigen::VectorXd& v) const {
     if (!split_) return;
-    v -= problem_.x0;
-    v -= ((static_cast<double>(j) + 0.5) * h_) * problem_.v0;
+    v -= x0;
+    v -= ((static_cast<double>(j) + 0.5) * h_) * v0;
   }
   // G^P_j = R (Φ(t_{j+1} − t_0) − Φ(t_j − t_0))/h, the cell average of P's damping force.
   void polynomial_force(std::size_t j, Eigen::VectorXd& out) const { polynomial_force_(j, out); }
@@ -265,10 +270,14 @@ bool TrapezoidalMidpointStepper::mirror_run(MirrorRows& rows) const {
     std::size_t n;
     std::unique_ptr<NodeAveragedTrapezoid> memory;
     Eigen::VectorXd s, ytil, poly_a, poly_b;
+    // Its own copies of what it reads every step (mirror_run.hpp).
+    ModelMatrix force_matrix = self.force_matrix_;
+    TaylorCellForce polynomial_force = self.polynomial_force_;
+    Eigen::VectorXd x0 = self.problem_.x0, v0 = self.problem_.v0;
     // The midpoint between `lo` and `hi` (midpoint i of y, mirroring x-midpoint N − 1 − i) minus P.
     void mid_tilde(const Eigen::VectorXd& lo, const Eigen::VectorXd& hi, std::size_t i) {
       ytil = 0.5 * (lo + hi);
-      self.subtract_polynomial_midpoint(n - 1 - i, ytil);
+      self.subtract_polynomial_midpoint(n - 1 - i, x0, v0, ytil);
     }
     void start(const Eigen::VectorXd& y_n, const Eigen::VectorXd& y_n1) {
       if (!self.damped_) return;
@@ -285,11 +294,11 @@ bool TrapezoidalMidpointStepper::mirror_run(MirrorRows& rows) const {
       // in the Newton matrix; node k mirrors x-node N − k.
       memory->known(n - k, s);
       ytil = y_k;
-      self.subtract_polynomial_midpoint(n - k, ytil);
+      self.subtract_polynomial_midpoint(n - k, x0, v0, ytil);
       s += self.current_weight_ * ytil;
-      self.force_matrix_.multiply(s, out);
-      self.polynomial_force(n - k, poly_a);
-      self.polynomial_force(n - k - 1, poly_b);
+      force_matrix.multiply(s, out);
+      polynomial_force(n - k, poly_a);
+      polynomial_force(n - k - 1, poly_b);
       out += 0.5 * (poly_a + poly_b);
     }
     void accept(std::size_t k, const Eigen::VectorXd& y_km1, const Eigen::VectorXd& y_k) {
