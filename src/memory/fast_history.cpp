@@ -310,7 +310,7 @@ std::size_t fast_history_fit_lag(std::size_t capacity) {
 // atomic: kIdle (no job, or its results published), kWork (slot posted), kStop. Each side spins a
 // while before it sleeps on the atomic (futex): a job posted at the end of a push is usually
 // finished before the next push, and the next job comes one step later, so at the sizes where a
-// team pays (≥ kParallelWork multiply–adds per push, tens of microseconds) the handover stays in
+// team pays (≥ kRunAheadWork multiply–adds per push, microseconds) the handover stays in
 // the spin. Neither side allocates after construction.
 class FastHistory::AheadThread {
  public:
@@ -518,8 +518,11 @@ void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
 
 void FastHistory::configure_threads(int threads) {
   finish_ahead();
-  team_.configure(threads, internal::team_size(threads, ring_.rows() * (state_.cols() + window_),
-                                               kParallelWork));
+  const Eigen::Index work = ring_.rows() * (state_.cols() + window_);
+  int team = internal::team_size(threads, work, kParallelWork);
+  // A team of two runs ahead instead of splitting the rows: it pays from kRunAheadWork.
+  if (team == 1 && internal::team_size(threads, work, kRunAheadWork) == 2) team = 2;
+  team_.configure(threads, team);
   if (team_.team() == 2) {
     if (!ahead_thread_) ahead_thread_ = std::make_unique<AheadThread>(*this);
   } else {

@@ -46,8 +46,10 @@ struct CompanionRuns;  // error_estimate.cpp
 
 /// Below this many degrees of freedom ConcurrentErrorEstimate runs the companions on a second
 /// thread: a step's history then stays below FastHistory's kParallelWork (2^18 multiply–adds for
-/// K + window ≤ 128 terms), so the main run never starts a thread team that the companion thread
-/// would compete with (two busy teams on two cores are slower than one after the other).
+/// K + window ≤ 128 terms), so the main run never splits it over a thread team that the companion
+/// thread would compete with (two busy teams on two cores are slower than one after the other).
+/// The run-ahead thread of a team of two (from kRunAheadWork) is kept only while TeamChooser
+/// times whole steps faster with it, the companion's competition included.
 inline constexpr Eigen::Index kMaxConcurrentDimension = 2048;
 
 /// estimate_error() with its companion runs on a second thread, started before the main run:

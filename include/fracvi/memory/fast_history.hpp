@@ -80,7 +80,8 @@ class FastHistory final : public History {
   /// Threads for push() (0 = OpenMP's default, measured against one; see TeamChooser). A team of
   /// two runs the next push ahead on its second thread (above); a larger team splits the degrees
   /// of freedom over OpenMP threads. Below kParallelWork multiply–adds per step one thread does
-  /// everything (a parallel region costs about a microsecond).
+  /// everything (a parallel region costs about a microsecond) — but a team of two, the run-ahead
+  /// thread, from kRunAheadWork.
   void set_threads(int threads) override;
   /// The window (ring), the K recursions Y_j, the tail and the last sum.
   void visit_state(StateArchive& archive) override;
@@ -131,6 +132,13 @@ class FastHistory final : public History {
 /// (bench/fractional_chain, -march=native, K + n0 ≈ 80): two threads were slower than one at
 /// d = 1000 (0.80×), about even at d = 2000 (1.07×), ahead from d = 4000 (1.21×; 1.30× at 10^4).
 inline constexpr Eigen::Index kParallelWork = Eigen::Index{1} << 18;
+/// The same for a team of exactly two, whose second thread runs the next push's recursions
+/// while the caller computes the rest of its step (no split, no parallel region): it pays from
+/// smaller systems. Linear chain, one thread against forced two, three rounds each
+/// (bench/RESULTS.md): d = 150 2.8–3.0 → 2.1–2.7 µs per step, d = 600 9.0–10.0 → 6.3–6.6 (one
+/// run 12.4), d = 1000 15.4–16.4 → 10.2–14.9; whether it does on a given machine and load,
+/// TeamChooser measures (threads = 0).
+inline constexpr Eigen::Index kRunAheadWork = Eigen::Index{1} << 15;
 
 /// The max_lag used by FastHistory(order, …) for a capacity: the next power of two ≥
 /// capacity − 1 (at least 1), so that runs of similar length share one cached fit. A fit for a
