@@ -178,8 +178,8 @@ class CompiledDerivatives {
    public:
     Workspace() = default;
     /// The variables' own slots (num_variables() of them): values written here and passed
-    /// back to evaluate() or gradient() are not copied again (a formula evaluated several times
-    /// per step at d = 1 spends as much on copies as on its tape).
+    /// back to evaluate() or gradient() are not copied again (ExpressionPotential fills them
+    /// directly: its formula is evaluated several times per step).
     std::span<double> values() { return {slots_.data(), variables_}; }
 
    private:
