@@ -2,6 +2,7 @@
 
 #include "fracvi/internal/vectorize.hpp"
 #include "fracvi/schemes/history_budget.hpp"
+#include "fracvi/solve/vector_passes.hpp"
 #include "mirror_run.hpp"
 #include "power_differences.hpp"
 
@@ -193,8 +194,7 @@ Status CqMidpointStepper::advance() {
   }
   bool finite = true;  // x_{k+1} and its check (in one pass for small systems)
   if (d_ >= kVectorPassesFrom) {
-    x_next_ = xk + dx_;
-    finite = all_finite(x_next_);
+    finite = add_and_check(xk.data(), dx_.data(), x_next_.data(), d_);
   } else {
     for (Eigen::Index i = 0; i < d_; ++i) {
       x_next_[i] = xk[i] + dx_[i];
@@ -256,7 +256,7 @@ Status CqMidpointStepper::advance() {
       supplied_ += du;
     }
   }
-  if (!(d_ >= kVectorPassesFrom ? all_finite(v_next_) : v_next_.allFinite()))
+  if (!(d_ >= kVectorPassesFrom ? all_finite_pass(v_next_.data(), d_) : v_next_.allFinite()))
     return fail(Status::kNonFinite, "non-finite velocity");
 
   if (k == 0) x_first_ = x_next_;  // the mirror run starts from x_0, x_1

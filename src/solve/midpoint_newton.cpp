@@ -1,6 +1,7 @@
 #include "fracvi/solve/midpoint_newton.hpp"
 
 #include "fracvi/internal/vectorize.hpp"
+#include "fracvi/solve/vector_passes.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -48,10 +49,10 @@ constexpr double kCarriedFactorMargin = 0.5;
 constexpr std::size_t kMaxCarryBackoff = 64;
 
 // The update increment −= δ and what the iteration needs of it. The per-element passes of an
-// iteration come in two forms with the same operations, hence the same numbers (the maxima are
-// exact): fused element loops for small systems and Eigen's vectorised passes from
-// kVectorPassesFrom on (internal/vectorize.hpp; the fused loops ran at ≈ 3 cycles per element at
-// d = 1000, ≈ 20 % of a β-FPUT step).
+// iteration come in two forms with the same operations (the maxima are exact): fused element
+// loops for small systems, and from kVectorPassesFrom on the fused kernels of vector_passes.hpp
+// (their reductions vectorised: the plain loops ran at ≈ 3 cycles per element at d = 1000, ≈ 20 %
+// of a β-FPUT step; an x86-64-v3 clone).
 struct Correction {
   double size = 0.0;   // max|δ_i|
   double scale = 0.0;  // max|a_i + Δ_i| (kNext only)
@@ -65,13 +66,11 @@ Correction apply_correction(const Eigen::VectorXd& delta,
                             Eigen::Ref<Eigen::VectorXd> increment, Eigen::VectorXd& mid) {
   Correction c;
   if (delta.size() >= kVectorPassesFrom) {
-    increment -= delta;
-    c.size = max_abs(delta);
-    c.finite = all_finite(increment);
-    if constexpr (kNext) {
-      mid = a + 0.5 * increment;
-      c.scale = max_abs(a + increment);
-    }
+    const CorrectionPass pass = apply_correction_pass(delta.data(), a.data(), increment.data(),
+                                                      mid.data(), delta.size(), kNext);
+    c.size = pass.size;
+    c.scale = pass.scale;
+    c.finite = pass.finite;
     return c;
   }
   for (Eigen::Index i = 0; i < delta.size(); ++i) {
@@ -319,13 +318,14 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
     bool residual_finite = true;
     if (residual_.size() >= kVectorPassesFrom) {
       if (a_diagonal_.size() > 0) {
-        residual_.array() =
-            (a_diagonal_.array() * increment.array() + half_h2_ * grad_.array()) - c.array();
+        residual_finite =
+            diagonal_residual(a_diagonal_.data(), increment.data(), half_h2_, grad_.data(),
+                              c.data(), residual_.data(), residual_.size());
       } else {
         A_.multiply(increment, residual_);
-        residual_.array() = (residual_.array() + half_h2_ * grad_.array()) - c.array();
+        residual_finite =
+            general_residual(half_h2_, grad_.data(), c.data(), residual_.data(), residual_.size());
       }
-      residual_finite = all_finite(residual_);
     } else if (a_diagonal_.size() > 0) {
       for (Eigen::Index i = 0; i < residual_.size(); ++i) {
         residual_[i] = (a_diagonal_[i] * increment[i] + half_h2_ * grad_[i]) - c[i];

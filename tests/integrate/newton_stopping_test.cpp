@@ -11,10 +11,10 @@
 #include <vector>
 
 #include "fracvi/core/newton_options.hpp"
-#include "fracvi/internal/vectorize.hpp"
 #include "fracvi/model/model_matrix.hpp"
 #include "fracvi/model/potential.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
+#include "fracvi/solve/vector_passes.hpp"
 
 namespace fracvi {
 namespace {
@@ -60,24 +60,69 @@ class DiagonalHessianPotential : public Potential {
   Eigen::Index d_;
 };
 
-// The vectorised reductions of the large-system passes (internal/vectorize.hpp): finiteness must
-// notice one ∞ or NaN anywhere (a fast max may drop a NaN), and the max is exact.
-TEST(VectorisedPasses, AllFiniteNoticesOneBadEntryAnywhereAndMaxAbsIsExact) {
+// The fused passes of a large system's step (solve/vector_passes.hpp): each finiteness check must
+// notice one ∞ or NaN anywhere, in any element the pass writes (a fast max may drop a NaN), the
+// max is exact, and the values are the expressions' (to one rounding: the x86-64-v3 clone fuses
+// products into FMAs).
+TEST(VectorisedPasses, FusedPassesNoticeOneBadEntryAnywhereAndGiveTheirValues) {
   for (const Eigen::Index n : {1, 2, 33, 1000, 1001}) {
-    Eigen::VectorXd v = Eigen::VectorXd::LinSpaced(n, -1e300, 3.0);
-    EXPECT_TRUE(internal::all_finite(v)) << n;
-    EXPECT_EQ(internal::max_abs(v), std::abs(v[0])) << n;
-    EXPECT_EQ(internal::max_abs(v + v), 2.0 * std::abs(v[0])) << n;  // a lazy expression
+    const Eigen::VectorXd v = Eigen::VectorXd::LinSpaced(n, -1e300, 3.0);
+    const Eigen::VectorXd w = Eigen::VectorXd::LinSpaced(n, 2.0, -5.0);
+    const Eigen::VectorXd m = Eigen::VectorXd::LinSpaced(n, 1.0, 4.0);
+    const Eigen::VectorXd g =
+        Eigen::VectorXd::LinSpaced(n, 3.0, -7.0);  // max|g_i| at a negative g_i
+    const double s = 0.375;
+    Eigen::VectorXd out(n), mid(n);
+    EXPECT_TRUE(internal::all_finite_pass(v.data(), n)) << n;
+    EXPECT_TRUE(internal::add_and_check(v.data(), w.data(), out.data(), n)) << n;
+    EXPECT_EQ(out, v + w) << n;  // one addition: no product to fuse
+    EXPECT_TRUE(
+        internal::diagonal_residual(m.data(), w.data(), s, g.data(), v.data(), out.data(), n));
+    const Eigen::VectorXd residual = (m.array() * w.array() + s * g.array()) - v.array();
+    const Eigen::VectorXd scale =
+        (m.array() * w.array()).abs() + (s * g.array()).abs() + v.array().abs();
+    EXPECT_LE(((out - residual).array().abs() - 4e-16 * scale.array()).maxCoeff(), 0.0) << n;
+    out = m;
+    EXPECT_TRUE(internal::general_residual(s, g.data(), v.data(), out.data(), n));
+    const Eigen::VectorXd general = (m.array() + s * g.array()) - v.array();
+    EXPECT_LE(((out - general).array().abs() -
+               4e-16 * (m.array().abs() + (s * g.array()).abs() + v.array().abs()))
+                  .maxCoeff(),
+              0.0)
+        << n;
+    for (const bool with_next : {false, true}) {
+      Eigen::VectorXd increment = w;
+      const internal::CorrectionPass pass = internal::apply_correction_pass(
+          g.data(), v.data(), increment.data(), mid.data(), n, with_next);
+      EXPECT_EQ(increment, w - g);
+      EXPECT_EQ(pass.size, g.cwiseAbs().maxCoeff()) << n;
+      EXPECT_TRUE(pass.finite);
+      if (with_next) {
+        EXPECT_EQ(pass.scale, (v + increment).cwiseAbs().maxCoeff()) << n;
+        EXPECT_EQ(mid, v + 0.5 * increment) << n;
+      }
+    }
     for (const double bad : {kInf, -kInf, std::nan("")}) {
       for (const Eigen::Index at : {Eigen::Index{0}, n / 2, n - 1}) {
-        Eigen::VectorXd w = v;
-        w[at] = bad;
-        EXPECT_FALSE(internal::all_finite(w)) << n << " " << at << " " << bad;
+        Eigen::VectorXd x = w;
+        x[at] = bad;
+        EXPECT_FALSE(internal::all_finite_pass(x.data(), n)) << n << " " << at << " " << bad;
+        EXPECT_FALSE(internal::add_and_check(m.data(), x.data(), out.data(), n)) << n << " " << at;
+        EXPECT_FALSE(
+            internal::diagonal_residual(m.data(), w.data(), s, x.data(), g.data(), out.data(), n))
+            << n << " " << at;
+        out = m;
+        EXPECT_FALSE(internal::general_residual(s, g.data(), x.data(), out.data(), n))
+            << n << " " << at;
+        Eigen::VectorXd increment = m;
+        EXPECT_FALSE(internal::apply_correction_pass(x.data(), g.data(), increment.data(),
+                                                     mid.data(), n, true)
+                         .finite)
+            << n << " " << at;
       }
     }
   }
-  EXPECT_TRUE(internal::all_finite(Eigen::VectorXd(0)));
-  EXPECT_EQ(internal::max_abs(Eigen::VectorXd(0)), 0.0);
+  EXPECT_TRUE(internal::all_finite_pass(nullptr, 0));
 }
 
 // U = ½ k Σ x_i², whose hessian() reports s·k instead of k: the Newton matrix is then off by a
