@@ -23,6 +23,7 @@
 #include "fracvi/core/memory.hpp"
 #include "fracvi/integrate/dense_output.hpp"
 #include "fracvi/schemes/history_budget.hpp"
+#include "fracvi/solve/vector_passes.hpp"
 
 namespace fracvi {
 
@@ -573,7 +574,9 @@ struct Integrator::Impl {
 
   // E_k = ½ v_kᵀ p_k + U(x_k, t_k) from the stepper's state; sets kinetic_k and potential_k.
   [[nodiscard]] double energy(std::size_t i) {
-    kinetic_k = 0.5 * stepper->velocity().dot(stepper->momentum());
+    const Eigen::VectorXd &v = stepper->velocity(), &p = stepper->momentum();
+    kinetic_k = 0.5 * (d >= internal::kVectorPassesFrom ? internal::dot_pass(v.data(), p.data(), d)
+                                                        : v.dot(p));
     potential_k = problem.model.potential
                       ? problem.model.potential->value(stepper->position(), time(i))
                       : 0.0;

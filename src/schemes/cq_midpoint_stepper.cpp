@@ -121,17 +121,10 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
 
 void CqMidpointStepper::tilde(const Eigen::Ref<const Eigen::VectorXd>& x, std::size_t i,
                               Eigen::VectorXd& out) const {
-  // One pass per case, the same roundings as x, then −x_0, then −t_i v_0 in turn.
+  // One pass, the roundings of x, then −x_0, then −t_i v_0 in turn.
   const double t = static_cast<double>(i) * h_;
-  if (shift_x0_ && shift_v0_) {
-    out = x - problem_.x0 - t * problem_.v0;
-  } else if (shift_x0_) {
-    out = x - problem_.x0;
-  } else if (shift_v0_) {
-    out = x - t * problem_.v0;
-  } else {
-    out = x;
-  }
+  shifted_pass(x.data(), shift_x0_ ? problem_.x0.data() : nullptr, t,
+               shift_v0_ ? problem_.v0.data() : nullptr, out.data(), d_);
 }
 
 void CqMidpointStepper::add_polynomial_force(std::size_t k, const Eigen::VectorXd& x0,
@@ -178,30 +171,21 @@ Status CqMidpointStepper::advance() {
     // increment Δ_k = x_{k+1} − x_k. Predictor: the previous increment (h v_0 at k = 0).
     // p⁺_k and the right-hand side h p⁺_k in one pass (the same roundings as two).
     const double impulse = (k == 0 ? start_force_weight_ : 0.5) * h_;
-    for (Eigen::Index i = 0; i < d_; ++i) {
-      p_plus_[i] = p_[i] - impulse * force_[i];
-      rhs_[i] = h_ * p_plus_[i];
-    }
+    start_momentum_pass(p_.data(), force_.data(), impulse, h_, p_plus_.data(), rhs_.data(), d_);
     if (k == 0) dx_ = h_ * problem_.v0;
     const NewtonReport report = newton_.solve(xk, t_half, rhs_, f_ptr, dx_);
     if (const Status s = newton_outcome(report, "M + (h^2/4) Hess U"); s != Status::kSuccess)
       return s;
     // p⁻_{k+1} = 2MΔ_k/h − p⁺_k (the two one-sided momenta average to M Δ_k/h).
     mass_.multiply(dx_, p_minus_);
-    // One pass, the same roundings as *= then −= (plain loops here and below: an Eigen
-    // expression's set-up costs more than its work at d = 1).
-    for (Eigen::Index i = 0; i < d_; ++i) p_minus_[i] = p_minus_[i] * (2.0 / h_) - p_plus_[i];
+    // One pass, the same roundings as *= then −= (the element passes here and below:
+    // vector_passes.hpp; an Eigen expression's set-up costs more than its work at d = 1).
+    scale_and_subtract_pass(2.0 / h_, p_plus_.data(), p_minus_.data(), d_);
   }
-  bool finite = true;  // x_{k+1} and its check (in one pass for small systems)
-  if (d_ >= kVectorPassesFrom) {
-    finite = add_and_check(xk.data(), dx_.data(), x_next_.data(), d_);
-  } else {
-    for (Eigen::Index i = 0; i < d_; ++i) {
-      x_next_[i] = xk[i] + dx_[i];
-      finite &= std::isfinite(x_next_[i]);
-    }
+  // x_{k+1} and its check in one pass.
+  if (!add_and_check(xk.data(), dx_.data(), x_next_.data(), d_)) {
+    return fail(Status::kNonFinite, "non-finite position");
   }
-  if (!finite) return fail(Status::kNonFinite, "non-finite position");
 
   // Damping force at the new point, grid momentum p_{k+1} = p⁻_{k+1} − (h/2)F_{k+1}, velocity.
   if (viscous_local_ && damped_) {
@@ -216,15 +200,20 @@ Status CqMidpointStepper::advance() {
       add_polynomial_force(k + 1, problem_.x0, problem_.v0, sum_);
   }
   if (damped_) force_matrix_.multiply(sum_, force_next_);
-  for (Eigen::Index i = 0; i < d_; ++i) p_[i] = p_minus_[i] - (0.5 * h_) * force_next_[i];
+  subtract_scaled_pass(p_minus_.data(), 0.5 * h_, force_next_.data(), p_.data(), d_);
   mass_solver_.inverse(p_, v_next_);
 
   // Energy account (solution.hpp; start_step.md §4).
   double fv_next = 0.0, fw_next = 0.0;
   if (diagnostics_) {
     if (damped_) mass_solver_.inverse_damping(sum_, w_next_);  // M⁻¹F_{k+1}
-    fv_next = force_next_.dot(v_next_);
-    fw_next = force_next_.dot(w_next_);
+    if (d_ >= kVectorPassesFrom) {
+      fv_next = dot_pass(force_next_.data(), v_next_.data(), d_);
+      fw_next = dot_pass(force_next_.data(), w_next_.data(), d_);
+    } else {
+      fv_next = force_next_.dot(v_next_);
+      fw_next = force_next_.dot(w_next_);
+    }
     work_ += 0.5 * h_ * (fv_ + fv_next) + 0.125 * h_ * h_ * (fw_next - fw_);
     // The extra start impulse (w − ½) h F_0 of the singular RL force: the kinetic energy it
     // changes exactly, T(p_0 − ½hF_0) − T(p_0 − whF_0) = (w − ½) h F_0·v_0 − ½(w² − ¼) h²
@@ -256,8 +245,7 @@ Status CqMidpointStepper::advance() {
       supplied_ += du;
     }
   }
-  if (!(d_ >= kVectorPassesFrom ? all_finite_pass(v_next_.data(), d_) : v_next_.allFinite()))
-    return fail(Status::kNonFinite, "non-finite velocity");
+  if (!all_finite_pass(v_next_.data(), d_)) return fail(Status::kNonFinite, "non-finite velocity");
 
   if (k == 0) x_first_ = x_next_;  // the mirror run starts from x_0, x_1
   ++k_;
@@ -302,14 +290,10 @@ bool CqMidpointStepper::mirror_run(MirrorRows& rows) const {
     ModelMatrix force_matrix = self.force_matrix_;
     Eigen::VectorXd x0 = self.problem_.x0, v0 = self.problem_.v0;
     void push(const Eigen::VectorXd& y, std::size_t j) {
-      // ỹ_j in one element loop, the same roundings as y, then −x_0, then −(t_N − t_j) v_0.
+      // ỹ_j in one pass, the same roundings as y, then −x_0, then −(t_N − t_j) v_0.
       const double span = static_cast<double>(n - j) * self.h_;
-      for (Eigen::Index i = 0; i < self.d_; ++i) {
-        double value = y[i];
-        if (self.shift_x0_) value -= x0[i];
-        if (self.shift_v0_) value -= span * v0[i];
-        shifted[i] = value;
-      }
+      shifted_pass(y.data(), self.shift_x0_ ? x0.data() : nullptr, span,
+                   self.shift_v0_ ? v0.data() : nullptr, shifted.data(), self.d_);
       hist->push(shifted);
     }
     void start(const Eigen::VectorXd& y_n, const Eigen::VectorXd& y_n1) {

@@ -1,6 +1,5 @@
 #include "fracvi/solve/midpoint_newton.hpp"
 
-#include "fracvi/internal/vectorize.hpp"
 #include "fracvi/solve/vector_passes.hpp"
 
 #include <algorithm>
@@ -47,44 +46,6 @@ constexpr double kKeptFactorContraction = 0.25;
 // 10^5 steps.
 constexpr double kCarriedFactorMargin = 0.5;
 constexpr std::size_t kMaxCarryBackoff = 64;
-
-// The update increment −= δ and what the iteration needs of it. The per-element passes of an
-// iteration come in two forms with the same operations (the maxima are exact): fused element
-// loops for small systems, and from kVectorPassesFrom on the fused kernels of vector_passes.hpp
-// (their reductions vectorised: the plain loops ran at ≈ 3 cycles per element at d = 1000, ≈ 20 %
-// of a β-FPUT step; an x86-64-v3 clone).
-struct Correction {
-  double size = 0.0;   // max|δ_i|
-  double scale = 0.0;  // max|a_i + Δ_i| (kNext only)
-  bool finite = true;  // every updated Δ_i finite
-};
-// kNext: also the next iterate's midpoint a + Δ/2 into `mid` and the scale of the convergence
-// test (a nonlinear step; a linear one ends after this correction).
-template <bool kNext>
-Correction apply_correction(const Eigen::VectorXd& delta,
-                            const Eigen::Ref<const Eigen::VectorXd>& a,
-                            Eigen::Ref<Eigen::VectorXd> increment, Eigen::VectorXd& mid) {
-  Correction c;
-  if (delta.size() >= kVectorPassesFrom) {
-    const CorrectionPass pass = apply_correction_pass(delta.data(), a.data(), increment.data(),
-                                                      mid.data(), delta.size(), kNext);
-    c.size = pass.size;
-    c.scale = pass.scale;
-    c.finite = pass.finite;
-    return c;
-  }
-  for (Eigen::Index i = 0; i < delta.size(); ++i) {
-    const double updated = increment[i] - delta[i];
-    increment[i] = updated;
-    c.size = std::max(c.size, std::abs(delta[i]));
-    c.finite &= std::isfinite(updated);
-    if constexpr (kNext) {
-      c.scale = std::max(c.scale, std::abs(a[i] + updated));
-      mid[i] = a[i] + 0.5 * updated;
-    }
-  }
-  return c;
-}
 
 }  // namespace
 
@@ -300,11 +261,8 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
   // The scale of the convergence test; a linear step has none (one pass fewer per step).
   const double a_norm = linear_ ? 0.0 : a.cwiseAbs().maxCoeff();
   // The first iterate's midpoint; later ones come out of the correction pass.
-  if (mid_.size() >= kVectorPassesFrom) {
-    mid_ = a + 0.5 * increment;
-  } else {
-    for (Eigen::Index i = 0; i < mid_.size(); ++i) mid_[i] = a[i] + 0.5 * increment[i];
-  }
+  const Eigen::Index d = mid_.size();
+  midpoint_pass(a.data(), increment.data(), mid_.data(), d);
   for (int it = 1; it <= max_iterations; ++it) {
     effective_gradient(mid_, tau, forcing_tau, grad_);
     if (state_force_ != nullptr) {
@@ -312,31 +270,16 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
       state_force_->jacobians(mid_, velocity_, tau, force_value_, force_dx_, force_dv_);
       grad_ -= force_value_;
     }
-    // (A Δ + (h²/2) g) − c element by element with its finiteness check, the same roundings as
-    // A Δ, += and −= (kVectorPassesFrom: Eigen's passes, or one plain loop for small systems); a
-    // diagonal A (the chains' mass) multiplies in the same pass.
+    // (A Δ + (h²/2) g) − c element by element with its finiteness check, in one pass
+    // (vector_passes.hpp): the same roundings as A Δ, += and −=; a diagonal A (the chains' mass)
+    // multiplies in the same pass.
     bool residual_finite = true;
-    if (residual_.size() >= kVectorPassesFrom) {
-      if (a_diagonal_.size() > 0) {
-        residual_finite =
-            diagonal_residual(a_diagonal_.data(), increment.data(), half_h2_, grad_.data(),
-                              c.data(), residual_.data(), residual_.size());
-      } else {
-        A_.multiply(increment, residual_);
-        residual_finite =
-            general_residual(half_h2_, grad_.data(), c.data(), residual_.data(), residual_.size());
-      }
-    } else if (a_diagonal_.size() > 0) {
-      for (Eigen::Index i = 0; i < residual_.size(); ++i) {
-        residual_[i] = (a_diagonal_[i] * increment[i] + half_h2_ * grad_[i]) - c[i];
-        residual_finite &= std::isfinite(residual_[i]);
-      }
+    if (a_diagonal_.size() > 0) {
+      residual_finite = diagonal_residual(a_diagonal_.data(), increment.data(), half_h2_,
+                                          grad_.data(), c.data(), residual_.data(), d);
     } else {
       A_.multiply(increment, residual_);
-      for (Eigen::Index i = 0; i < residual_.size(); ++i) {
-        residual_[i] = (residual_[i] + half_h2_ * grad_[i]) - c[i];
-        residual_finite &= std::isfinite(residual_[i]);
-      }
+      residual_finite = general_residual(half_h2_, grad_.data(), c.data(), residual_.data(), d);
     }
     report.iterations = it;
     if (!residual_finite) {
@@ -363,8 +306,10 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
     } else {
       factor_->solve_in_place(residual_);
     }
-    const Correction applied = linear_ ? apply_correction<false>(*delta, a, increment, mid_)
-                                       : apply_correction<true>(*delta, a, increment, mid_);
+    // The update Δ −= δ, the size of δ and the finiteness of Δ, and for a nonlinear step the next
+    // iterate's midpoint and the scale of the convergence test, in one pass (vector_passes.hpp).
+    const CorrectionPass applied =
+        apply_correction_pass(delta->data(), a.data(), increment.data(), mid_.data(), d, !linear_);
     report.correction = applied.size;
     if (!applied.finite || !std::isfinite(report.correction)) {
       report.status = Status::kNonFinite;

@@ -1,84 +1,66 @@
 #include "fracvi/solve/vector_passes.hpp"
 
-#include <algorithm>
-#include <cmath>
+namespace fracvi::internal::kernels {
 
-#include "fracvi/internal/vectorize.hpp"
-
-namespace fracvi::internal {
-
-// Σ 0·v_i is ±0 when every v_i is finite and NaN otherwise (0·∞ = NaN), in any order
-// (internal/vectorize.hpp, all_finite).
+// Each kernel is its loop (vector_passes.hpp) in a function with an x86-64-v3 clone.
 
 FRACVI_HOT_KERNEL
 bool add_and_check(const double* a, const double* b, double* out, Eigen::Index n) {
-  double zero = 0.0;
-#pragma omp simd reduction(+ : zero)
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const double value = a[i] + b[i];
-    out[i] = value;
-    zero += 0.0 * value;
-  }
-  return zero == 0.0;
+  return loops::add_and_check(a, b, out, n);
 }
 
 FRACVI_HOT_KERNEL
 bool diagonal_residual(const double* m, const double* increment, double s, const double* g,
                        const double* c, double* out, Eigen::Index n) {
-  double zero = 0.0;
-#pragma omp simd reduction(+ : zero)
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const double value = (m[i] * increment[i] + s * g[i]) - c[i];
-    out[i] = value;
-    zero += 0.0 * value;
-  }
-  return zero == 0.0;
+  return loops::diagonal_residual(m, increment, s, g, c, out, n);
 }
 
 FRACVI_HOT_KERNEL
 bool general_residual(double s, const double* g, const double* c, double* out, Eigen::Index n) {
-  double zero = 0.0;
-#pragma omp simd reduction(+ : zero)
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const double value = (out[i] + s * g[i]) - c[i];
-    out[i] = value;
-    zero += 0.0 * value;
-  }
-  return zero == 0.0;
+  return loops::general_residual(s, g, c, out, n);
 }
 
 FRACVI_HOT_KERNEL
-CorrectionPass apply_correction_pass(const double* delta, const double* a, double* increment,
-                                     double* mid, Eigen::Index n, bool with_next) {
-  double size = 0.0, scale = 0.0, zero = 0.0;
-  if (with_next) {
-#pragma omp simd reduction(max : size, scale) reduction(+ : zero)
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const double updated = increment[i] - delta[i];
-      increment[i] = updated;
-      size = std::max(size, std::abs(delta[i]));
-      zero += 0.0 * updated;
-      scale = std::max(scale, std::abs(a[i] + updated));
-      mid[i] = a[i] + 0.5 * updated;
-    }
-  } else {
-#pragma omp simd reduction(max : size) reduction(+ : zero)
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const double updated = increment[i] - delta[i];
-      increment[i] = updated;
-      size = std::max(size, std::abs(delta[i]));
-      zero += 0.0 * updated;
-    }
-  }
-  return {size, scale, zero == 0.0};
+CorrectionPass apply_correction(const double* delta, const double* a, double* increment,
+                                double* mid, Eigen::Index n, bool with_next) {
+  return loops::apply_correction(delta, a, increment, mid, n, with_next);
 }
 
 FRACVI_HOT_KERNEL
-bool all_finite_pass(const double* v, Eigen::Index n) {
-  double zero = 0.0;
-#pragma omp simd reduction(+ : zero)
-  for (Eigen::Index i = 0; i < n; ++i) zero += 0.0 * v[i];
-  return zero == 0.0;
+bool all_finite(const double* v, Eigen::Index n) {
+  return loops::all_finite(v, n);
 }
 
-}  // namespace fracvi::internal
+FRACVI_HOT_KERNEL
+void midpoint(const double* a, const double* increment, double* out, Eigen::Index n) {
+  loops::midpoint(a, increment, out, n);
+}
+
+FRACVI_HOT_KERNEL
+void start_momentum(const double* p, const double* force, double impulse, double h, double* p_plus,
+                    double* rhs, Eigen::Index n) {
+  loops::start_momentum(p, force, impulse, h, p_plus, rhs, n);
+}
+
+FRACVI_HOT_KERNEL
+void scale_and_subtract(double s, const double* b, double* a, Eigen::Index n) {
+  loops::scale_and_subtract(s, b, a, n);
+}
+
+FRACVI_HOT_KERNEL
+void subtract_scaled(const double* a, double s, const double* b, double* out, Eigen::Index n) {
+  loops::subtract_scaled(a, s, b, out, n);
+}
+
+FRACVI_HOT_KERNEL
+void shifted(const double* x, const double* x0, double t, const double* v0, double* out,
+             Eigen::Index n) {
+  loops::shifted(x, x0, t, v0, out, n);
+}
+
+FRACVI_HOT_KERNEL
+double dot(const double* a, const double* b, Eigen::Index n) {
+  return loops::dot(a, b, n);
+}
+
+}  // namespace fracvi::internal::kernels

@@ -1,13 +1,18 @@
-// Fused per-element passes of a large system's step (internal).
+// Fused per-element passes of a step (internal).
 //
 // A step of a chain runs about twenty O(d) passes besides the history (bench/RESULTS.md): the
-// Newton residual, the correction, the new position, each followed by a finiteness check (and the
-// correction by its size) that Eigen would make a pass of its own. These kernels make each such
-// pair one pass over plain arrays, with the reductions written as OpenMP simd reductions (the
-// finiteness sum Σ 0·v_i and the max are exact in any order), and carry an x86-64-v3 clone
-// (internal/vectorize.hpp). The default clone does the same operations as the Eigen expressions
-// they replace, so the same numbers; the x86-64-v3 clone fuses a·b + c into FMAs, like the history
-// kernels' clones.
+// Newton residual, the correction, the new position, the momenta, x̃, the energy account. Each
+// function here is one such pass, fused with the check or the sum that follows it (a finiteness
+// check Σ 0·v_i and a max are exact in any order, so they are OpenMP simd reductions):
+//
+//   - below kVectorPassesFrom elements, the loop is inlined into the caller (at d = 1 a call
+//     costs more than its work), compiled like the caller;
+//   - from kVectorPassesFrom on, the same loop runs in a kernel with an x86-64-v3 clone
+//     (internal/vectorize.hpp, GCC's target_clones).
+//
+// The default build's operations are those the steps did before these passes existed, so the
+// numbers are the same on a CPU without AVX2; the x86-64-v3 clones fuse a·b + c into FMAs, like the
+// history kernels' clones, so a large system's results differ in the last bits on CPUs with AVX2.
 //
 // The kernels are plain loops and call nothing: a call from inside a clone after its 256-bit loop
 // can leave the upper halves of the vector registers dirty (GCC 12 put no vzeroupper before such a
@@ -15,19 +20,12 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+
+#include "fracvi/internal/vectorize.hpp"
 
 namespace fracvi::internal {
-
-/// out_i = a_i + b_i; returns whether every out_i is finite.
-bool add_and_check(const double* a, const double* b, double* out, Eigen::Index n);
-
-/// out_i = (m_i Δ_i + s g_i) − c_i, the residual of A Δ + s g = c for a diagonal A = diag(m);
-/// returns whether every out_i is finite.
-bool diagonal_residual(const double* m, const double* increment, double s, const double* g,
-                       const double* c, double* out, Eigen::Index n);
-
-/// out_i = (out_i + s g_i) − c_i (out holds A Δ); returns whether every out_i is finite.
-bool general_residual(double s, const double* g, const double* c, double* out, Eigen::Index n);
 
 /// What a Newton correction Δ −= δ yields.
 struct CorrectionPass {
@@ -36,12 +34,211 @@ struct CorrectionPass {
   bool finite = true;  // every updated Δ_i finite
 };
 
-/// Δ_i −= δ_i, and with `with_next` the next iterate's midpoint mid_i = a_i + Δ_i/2 and the scale
-/// max|a_i + Δ_i| of the convergence test.
-CorrectionPass apply_correction_pass(const double* delta, const double* a, double* increment,
-                                     double* mid, Eigen::Index n, bool with_next);
+// The loops, written once: inlined below kVectorPassesFrom, and into the kernels' clones. (Every
+// file is compiled with -fopenmp-simd, CMakeLists.txt, so the simd pragmas act alike everywhere.)
+namespace loops {
 
-/// Whether every v_i is finite (Σ 0·v_i, vectorised).
-bool all_finite_pass(const double* v, Eigen::Index n);
+#define FRACVI_PASS [[gnu::always_inline]] inline
+FRACVI_PASS bool add_and_check(const double* a, const double* b, double* out, Eigen::Index n) {
+  double zero = 0.0;
+#pragma omp simd reduction(+ : zero)
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double value = a[i] + b[i];
+    out[i] = value;
+    zero += 0.0 * value;
+  }
+  return zero == 0.0;
+}
+
+FRACVI_PASS bool diagonal_residual(const double* m, const double* increment, double s,
+                                   const double* g, const double* c, double* out, Eigen::Index n) {
+  double zero = 0.0;
+#pragma omp simd reduction(+ : zero)
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double value = (m[i] * increment[i] + s * g[i]) - c[i];
+    out[i] = value;
+    zero += 0.0 * value;
+  }
+  return zero == 0.0;
+}
+
+FRACVI_PASS bool general_residual(double s, const double* g, const double* c, double* out,
+                                  Eigen::Index n) {
+  double zero = 0.0;
+#pragma omp simd reduction(+ : zero)
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double value = (out[i] + s * g[i]) - c[i];
+    out[i] = value;
+    zero += 0.0 * value;
+  }
+  return zero == 0.0;
+}
+
+FRACVI_PASS CorrectionPass apply_correction(const double* delta, const double* a, double* increment,
+                                            double* mid, Eigen::Index n, bool with_next) {
+  double size = 0.0, scale = 0.0, zero = 0.0;
+  if (with_next) {
+#pragma omp simd reduction(max : size, scale) reduction(+ : zero)
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double updated = increment[i] - delta[i];
+      increment[i] = updated;
+      size = std::max(size, std::abs(delta[i]));
+      zero += 0.0 * updated;
+      scale = std::max(scale, std::abs(a[i] + updated));
+      mid[i] = a[i] + 0.5 * updated;
+    }
+  } else {
+#pragma omp simd reduction(max : size) reduction(+ : zero)
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double updated = increment[i] - delta[i];
+      increment[i] = updated;
+      size = std::max(size, std::abs(delta[i]));
+      zero += 0.0 * updated;
+    }
+  }
+  return {size, scale, zero == 0.0};
+}
+
+FRACVI_PASS bool all_finite(const double* v, Eigen::Index n) {
+  double zero = 0.0;
+#pragma omp simd reduction(+ : zero)
+  for (Eigen::Index i = 0; i < n; ++i) zero += 0.0 * v[i];
+  return zero == 0.0;
+}
+
+FRACVI_PASS void midpoint(const double* a, const double* increment, double* out, Eigen::Index n) {
+#pragma omp simd
+  for (Eigen::Index i = 0; i < n; ++i) out[i] = a[i] + 0.5 * increment[i];
+}
+
+FRACVI_PASS void start_momentum(const double* p, const double* force, double impulse, double h,
+                                double* p_plus, double* rhs, Eigen::Index n) {
+#pragma omp simd
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double value = p[i] - impulse * force[i];
+    p_plus[i] = value;
+    rhs[i] = h * value;
+  }
+}
+
+FRACVI_PASS void scale_and_subtract(double s, const double* b, double* a, Eigen::Index n) {
+#pragma omp simd
+  for (Eigen::Index i = 0; i < n; ++i) a[i] = a[i] * s - b[i];
+}
+
+FRACVI_PASS void subtract_scaled(const double* a, double s, const double* b, double* out,
+                                 Eigen::Index n) {
+#pragma omp simd
+  for (Eigen::Index i = 0; i < n; ++i) out[i] = a[i] - s * b[i];
+}
+
+FRACVI_PASS void shifted(const double* x, const double* x0, double t, const double* v0, double* out,
+                         Eigen::Index n) {
+  // One loop per case (the branches out of the loop); the roundings of x, then −x_0, then −t v_0.
+  if (x0 != nullptr && v0 != nullptr) {
+#pragma omp simd
+    for (Eigen::Index i = 0; i < n; ++i) out[i] = (x[i] - x0[i]) - t * v0[i];
+  } else if (x0 != nullptr) {
+#pragma omp simd
+    for (Eigen::Index i = 0; i < n; ++i) out[i] = x[i] - x0[i];
+  } else if (v0 != nullptr) {
+#pragma omp simd
+    for (Eigen::Index i = 0; i < n; ++i) out[i] = x[i] - t * v0[i];
+  } else {
+    for (Eigen::Index i = 0; i < n; ++i) out[i] = x[i];  // no call inside a clone (above)
+  }
+}
+
+FRACVI_PASS double dot(const double* a, const double* b, Eigen::Index n) {
+  double sum = 0.0;
+#pragma omp simd reduction(+ : sum)
+  for (Eigen::Index i = 0; i < n; ++i) sum += a[i] * b[i];
+  return sum;
+}
+
+#undef FRACVI_PASS
+
+}  // namespace loops
+
+// The kernels: the loops above in x86-64-v3 clones (vector_passes.cpp).
+namespace kernels {
+bool add_and_check(const double* a, const double* b, double* out, Eigen::Index n);
+bool diagonal_residual(const double* m, const double* increment, double s, const double* g,
+                       const double* c, double* out, Eigen::Index n);
+bool general_residual(double s, const double* g, const double* c, double* out, Eigen::Index n);
+CorrectionPass apply_correction(const double* delta, const double* a, double* increment,
+                                double* mid, Eigen::Index n, bool with_next);
+bool all_finite(const double* v, Eigen::Index n);
+void midpoint(const double* a, const double* increment, double* out, Eigen::Index n);
+void start_momentum(const double* p, const double* force, double impulse, double h, double* p_plus,
+                    double* rhs, Eigen::Index n);
+void scale_and_subtract(double s, const double* b, double* a, Eigen::Index n);
+void subtract_scaled(const double* a, double s, const double* b, double* out, Eigen::Index n);
+void shifted(const double* x, const double* x0, double t, const double* v0, double* out,
+             Eigen::Index n);
+double dot(const double* a, const double* b, Eigen::Index n);
+}  // namespace kernels
+
+// The passes (n elements each; the pointers may not overlap except where an argument is read and
+// written in place).
+#define FRACVI_DISPATCH(name, ...) \
+  (n < kVectorPassesFrom ? loops::name(__VA_ARGS__) : kernels::name(__VA_ARGS__))
+
+/// out_i = a_i + b_i; returns whether every out_i is finite.
+inline bool add_and_check(const double* a, const double* b, double* out, Eigen::Index n) {
+  return FRACVI_DISPATCH(add_and_check, a, b, out, n);
+}
+/// out_i = (m_i Δ_i + s g_i) − c_i, the residual of A Δ + s g = c for a diagonal A = diag(m);
+/// returns whether every out_i is finite.
+inline bool diagonal_residual(const double* m, const double* increment, double s, const double* g,
+                              const double* c, double* out, Eigen::Index n) {
+  return FRACVI_DISPATCH(diagonal_residual, m, increment, s, g, c, out, n);
+}
+/// out_i = (out_i + s g_i) − c_i (out holds A Δ); returns whether every out_i is finite.
+inline bool general_residual(double s, const double* g, const double* c, double* out,
+                             Eigen::Index n) {
+  return FRACVI_DISPATCH(general_residual, s, g, c, out, n);
+}
+/// Δ_i −= δ_i, and with `with_next` the next iterate's midpoint mid_i = a_i + Δ_i/2 and the scale
+/// max|a_i + Δ_i| of the convergence test (`mid` is not touched without).
+inline CorrectionPass apply_correction_pass(const double* delta, const double* a, double* increment,
+                                            double* mid, Eigen::Index n, bool with_next) {
+  return FRACVI_DISPATCH(apply_correction, delta, a, increment, mid, n, with_next);
+}
+/// Whether every v_i is finite.
+inline bool all_finite_pass(const double* v, Eigen::Index n) {
+  return FRACVI_DISPATCH(all_finite, v, n);
+}
+/// out_i = a_i + Δ_i/2.
+inline void midpoint_pass(const double* a, const double* increment, double* out, Eigen::Index n) {
+  FRACVI_DISPATCH(midpoint, a, increment, out, n);
+}
+/// p⁺_i = p_i − w F_i and rhs_i = h p⁺_i.
+inline void start_momentum_pass(const double* p, const double* force, double impulse, double h,
+                                double* p_plus, double* rhs, Eigen::Index n) {
+  FRACVI_DISPATCH(start_momentum, p, force, impulse, h, p_plus, rhs, n);
+}
+/// a_i = a_i s − b_i.
+inline void scale_and_subtract_pass(double s, const double* b, double* a, Eigen::Index n) {
+  FRACVI_DISPATCH(scale_and_subtract, s, b, a, n);
+}
+/// out_i = a_i − s b_i.
+inline void subtract_scaled_pass(const double* a, double s, const double* b, double* out,
+                                 Eigen::Index n) {
+  FRACVI_DISPATCH(subtract_scaled, a, s, b, out, n);
+}
+/// out_i = x_i − x0_i − t v0_i, a null x0 or v0 leaving its term out.
+inline void shifted_pass(const double* x, const double* x0, double t, const double* v0, double* out,
+                         Eigen::Index n) {
+  FRACVI_DISPATCH(shifted, x, x0, t, v0, out, n);
+}
+
+#undef FRACVI_DISPATCH
+
+/// Σ a_i b_i for n ≥ kVectorPassesFrom, in the order of an OpenMP simd reduction (not Eigen's dot:
+/// smaller systems keep Eigen's, whose bits their outputs were checked with).
+inline double dot_pass(const double* a, const double* b, Eigen::Index n) {
+  return kernels::dot(a, b, n);
+}
 
 }  // namespace fracvi::internal
