@@ -60,10 +60,10 @@ class DiagonalHessianPotential : public Potential {
   Eigen::Index d_;
 };
 
-// The fused passes of a large system's step (solve/vector_passes.hpp): each finiteness check must
-// notice one ∞ or NaN anywhere, in any element the pass writes (a fast max may drop a NaN), the
-// max is exact, and the values are the expressions' (to one rounding: the x86-64-v3 clone fuses
-// products into FMAs).
+// The fused passes of a step (solve/vector_passes.hpp), inlined below 32 elements and in their
+// kernels above (both tested): each finiteness check must notice one ∞ or NaN anywhere, in any
+// element the pass writes (a fast max may drop a NaN), the max is exact, and the values are the
+// expressions' (to one rounding: the x86-64-v3 clone fuses products into FMAs).
 TEST(VectorisedPasses, FusedPassesNoticeOneBadEntryAnywhereAndGiveTheirValues) {
   for (const Eigen::Index n : {1, 2, 33, 1000, 1001}) {
     const Eigen::VectorXd v = Eigen::VectorXd::LinSpaced(n, -1e300, 3.0);
@@ -102,6 +102,35 @@ TEST(VectorisedPasses, FusedPassesNoticeOneBadEntryAnywhereAndGiveTheirValues) {
         EXPECT_EQ(mid, v + 0.5 * increment) << n;
       }
     }
+    // The passes without a check: each element within one rounding of its expression.
+    auto near = [n](const Eigen::VectorXd& got, const Eigen::VectorXd& want,
+                    const Eigen::VectorXd& size) {
+      EXPECT_LE(((got - want).array().abs() - 4e-16 * size.array()).maxCoeff(), 0.0) << n;
+    };
+    const double t = 0.625;
+    internal::midpoint_pass(v.data(), w.data(), out.data(), n);
+    EXPECT_EQ(out, v + 0.5 * w) << n;
+    Eigen::VectorXd rhs(n);
+    internal::start_momentum_pass(v.data(), g.data(), t, s, out.data(), rhs.data(), n);
+    near(out, v - t * g, v.cwiseAbs() + t * g.cwiseAbs());
+    EXPECT_EQ(rhs, s * out) << n;
+    out = m;
+    internal::scale_and_subtract_pass(t, g.data(), out.data(), n);
+    near(out, m * t - g, t * m.cwiseAbs() + g.cwiseAbs());
+    internal::subtract_scaled_pass(w.data(), t, g.data(), out.data(), n);
+    near(out, w - t * g, w.cwiseAbs() + t * g.cwiseAbs());
+    internal::shifted_pass(v.data(), w.data(), t, g.data(), out.data(), n);
+    near(out, (v - w) - t * g, v.cwiseAbs() + w.cwiseAbs() + t * g.cwiseAbs());
+    internal::shifted_pass(v.data(), nullptr, t, g.data(), out.data(), n);
+    near(out, v - t * g, v.cwiseAbs() + t * g.cwiseAbs());
+    internal::shifted_pass(v.data(), w.data(), t, nullptr, out.data(), n);
+    EXPECT_EQ(out, v - w) << n;
+    internal::shifted_pass(v.data(), nullptr, t, nullptr, out.data(), n);
+    EXPECT_EQ(out, v) << n;
+    const double dot = internal::dot_pass(w.data(), g.data(), n);
+    EXPECT_LE(std::abs(dot - w.dot(g)),
+              4e-16 * static_cast<double>(n) * w.cwiseAbs().dot(g.cwiseAbs()))
+        << n;
     for (const double bad : {kInf, -kInf, std::nan("")}) {
       for (const Eigen::Index at : {Eigen::Index{0}, n / 2, n - 1}) {
         Eigen::VectorXd x = w;

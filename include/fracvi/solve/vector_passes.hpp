@@ -11,8 +11,9 @@
 //     (internal/vectorize.hpp, GCC's target_clones).
 //
 // The default build's operations are those the steps did before these passes existed, so the
-// numbers are the same on a CPU without AVX2; the x86-64-v3 clones fuse a·b + c into FMAs, like the
-// history kernels' clones, so a large system's results differ in the last bits on CPUs with AVX2.
+// numbers are the same on a CPU without AVX2 (but dot_pass's sum, in the simd reduction's order);
+// the x86-64-v3 clones fuse a·b + c into FMAs, like the history kernels' clones, so a large
+// system's results differ in the last bits on CPUs with AVX2.
 //
 // The kernels are plain loops and call nothing: a call from inside a clone after its 256-bit loop
 // can leave the upper halves of the vector registers dirty (GCC 12 put no vzeroupper before such a
