@@ -140,13 +140,13 @@ LinearSolver choose_factorization(const SymmetricPattern& pattern) {
 // independent chains keep the multiply–add pipes busy), each chunk started from zero; the exact
 // solution is the chunk's local one plus a multiple of the value just before it (forward) or just
 // after it (backward): y_i = y_i^loc + g_i y_{s−1}, g_s = −e_{s−1}, g_i = −e_{i−1} g_{i−1} (the
-// "spikes", computed once per factorisation). The correction goes chunk by chunk (it needs the
-// corrected last value of the previous chunk) but is a vectorised pass, and stops where the spike
-// has underflowed (|g| < DBL_MIN is stored as 0, so no denormal enters the pass): for the
-// diagonally dominant matrices of chains (|e| ≈ h²k/4) that is after a few elements. Used when
-// n ≥ kChunkedMinimum and every |e_i| ≤ 1/2: then |g| ≤ 2^−t decays, the local solutions are no
-// larger than the true ones and the correction cannot cancel more than the sequential recurrence
-// would; otherwise (and for the LU fallback) LAPACK.
+// "spikes", computed once per factorisation). The corrected value before (after) each chunk goes
+// chunk by chunk, as it needs the previous chunk's corrected; then the corrections are a
+// vectorised pass, which stops where the spike has underflowed (|g| < DBL_MIN is stored as 0, so no
+// denormal enters the pass): for the diagonally dominant matrices of chains (|e| ≈ h²k/4) that is
+// after a few elements. Used when n ≥ kChunkedMinimum and every |e_i| ≤ 1/2: then |g| ≤ 2^−t
+// decays, the local solutions are no larger than the true ones and the correction cannot cancel
+// more than the sequential recurrence would; otherwise (and for the LU fallback) LAPACK.
 constexpr std::size_t kChunks = 16;
 constexpr std::size_t kChunkedMinimum = 32 * kChunks;
 constexpr double kChunkedMaxCoupling = 0.5;
@@ -169,6 +169,11 @@ struct SymmetricFactor::Banded {
   std::vector<double> forward, backward;  // g_i, h_i: the spikes
   std::vector<double> inverse_diag;       // 1/d_i (a division pass was a third of the solve)
   std::array<std::size_t, kChunks> forward_reach{}, backward_reach{};  // their non-zero lengths
+  // e_i, g_i and 1/d_i of the chunks' first c rows interleaved, [t kChunks + p] = v[p c + t] (set
+  // with the spikes), and the solve's scratch in that layout (mutable: solve_in_place is const,
+  // like Sparse's scratch, so one factor is not solved from two threads at once).
+  std::vector<double> lane_off, lane_forward, lane_inverse;
+  mutable std::vector<double> lanes;
 };
 
 struct SymmetricFactor::Sparse {
@@ -297,58 +302,240 @@ void SymmetricFactor::prepare_chunked_solve(Banded& b) noexcept {
     }
     if (!extended) break;
   }
+  // The interleaved copies (beyond a spike's reach, g_i is stale or 0: the solve masks it out).
+  for (std::size_t p = 0; p < kChunks; ++p) {
+    for (std::size_t t = 0; t < c; ++t) {
+      b.lane_off[t * kChunks + p] = e[p * c + t];
+      b.lane_forward[t * kChunks + p] = forward[p * c + t];
+      b.lane_inverse[t * kChunks + p] = b.inverse_diag[p * c + t];
+    }
+  }
   b.use_chunks = true;
 }
 
-// An x86-64-v3 clone (internal/vectorize.hpp): FMAs shorten the recurrences' latency (d = 1000,
-// linear chain, one thread, perf samples of the portable build against a whole x86-64-v3 build:
-// 894 → 747).
-FRACVI_HOT_KERNEL
-void SymmetricFactor::tridiagonal_chunked_solve(const Banded& b, double* x) noexcept {
-  const auto n = static_cast<std::size_t>(b.n);
-  const std::size_t c = b.chunk, last = chunk_begin(kChunks - 1, c);
-  const double* e = b.off.data();
-  // Forward, L y = b: the chunks' local recurrences side by side, then the last chunk's rest.
-  std::array<double, kChunks> carry{};
-  for (std::size_t p = 0; p < kChunks; ++p) carry[p] = x[chunk_begin(p, c)];
-  for (std::size_t t = 1; t < c; ++t) {
-    for (std::size_t p = 0; p < kChunks; ++p) {
-      const std::size_t i = chunk_begin(p, c) + t;
-      carry[p] = x[i] - e[i - 1] * carry[p];
-      x[i] = carry[p];
+namespace {
+
+// The solve's data, for its kernel: a free function, so that it can have an AVX2 version.
+struct ChunkedSolve {
+  std::size_t n, c;
+  const double *off, *forward, *backward, *inverse_diag;  // e_i, g_i, h_i, 1/d_i
+  const double *lane_off, *lane_forward, *lane_inverse;   // interleaved, rows [0, kChunks c)
+  const std::size_t *forward_reach, *backward_reach;
+  double* lanes;  // kChunks·c scratch, interleaved
+};
+
+// The kChunks recurrences of a chunked solve are kChunks lanes of SIMD vectors: element p c + t
+// (chunk p, row t) is at t kChunks + p of an interleaved ("lanes") copy, so that row t of every
+// chunk is kChunks/W contiguous vectors of W doubles. Walking the chunks at stride c instead, GCC
+// left the recurrences scalar (16 loads, multiplies, subtractions and stores per row: ≈ 40 % of
+// the solve in perf), and the corrections and the scaling were three more passes over x. Here
+// there are three: the forward recurrence, reading x through W × W register transposes; the
+// corrections, the scaling and the backward recurrence together; the backward corrections,
+// writing x through transposes. e, g and 1/d are interleaved once per factorisation
+// (prepare_chunked_solve). d = 1000 (bench/tridiagonal_bench): 1.66 → 0.97 µs with AVX2.
+// Every element gets the operations of the sequential chunked solve in the same order (a lane is
+// a chunk's recurrence; a correction is selected by a mask where its spike reaches, as adding a
+// zero would turn −0 into +0; this file is compiled with -ffp-contract=off, so the AVX2 version
+// has no FMA either): the numbers are the same bit for bit (symmetric_factor_test).
+// GNU vector extensions (GCC, Clang): V is W doubles, elementwise arithmetic, and a comparison
+// gives a mask of 0 / −1 integers that `mask ? a : b` selects with.
+typedef double Lanes2 __attribute__((vector_size(2 * sizeof(double))));
+typedef double Lanes4 __attribute__((vector_size(4 * sizeof(double))));
+
+template <class V>
+constexpr std::size_t kWidth = sizeof(V) / sizeof(double);
+
+// Unaligned access to W doubles (as Clang's own intrinsics do it: a packed may_alias struct; by
+// reference, since passing a 32-byte vector by value to a function changes the ABI without AVX).
+template <class V>
+struct __attribute__((packed, may_alias)) Unaligned {
+  V v;
+};
+template <class V>
+[[gnu::always_inline]] inline const Unaligned<V>& at(const double* p) {
+  return *reinterpret_cast<const Unaligned<V>*>(p);
+}
+template <class V>
+[[gnu::always_inline]] inline Unaligned<V>& at(double* p) {
+  return *reinterpret_cast<Unaligned<V>*>(p);
+}
+
+// r[j] (lanes of row j) ↦ r[j] (rows of lane j). (A build uses one width or both.)
+[[maybe_unused, gnu::always_inline]] inline void transpose(Lanes2 (&r)[2]) {
+  const Lanes2 a = __builtin_shufflevector(r[0], r[1], 0, 2);
+  const Lanes2 b = __builtin_shufflevector(r[0], r[1], 1, 3);
+  r[0] = a;
+  r[1] = b;
+}
+[[maybe_unused, gnu::always_inline]] inline void transpose(Lanes4 (&r)[4]) {
+  const Lanes4 t0 = __builtin_shufflevector(r[0], r[1], 0, 4, 2, 6);
+  const Lanes4 t1 = __builtin_shufflevector(r[0], r[1], 1, 5, 3, 7);
+  const Lanes4 t2 = __builtin_shufflevector(r[2], r[3], 0, 4, 2, 6);
+  const Lanes4 t3 = __builtin_shufflevector(r[2], r[3], 1, 5, 3, 7);
+  r[0] = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
+  r[1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+  r[2] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
+  r[3] = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
+}
+
+template <class V>
+[[gnu::always_inline]] inline void chunked_solve_lanes(const ChunkedSolve& s, double* x) noexcept {
+  constexpr std::size_t W = kWidth<V>, G = kChunks / W;  // G vectors per row
+  const std::size_t n = s.n, c = s.c, last = chunk_begin(kChunks - 1, c), rest = last + c;
+  const double* e = s.off;
+  double* lanes = s.lanes;
+  // Forward, L y = b: the chunks' local recurrences, lane by lane, reading x W rows at a time
+  // (W × W transposes) and writing the lanes; then the last chunk's rest.
+  V carry[G];
+#pragma GCC unroll 16
+  for (std::size_t g = 0; g < G; ++g) {
+#pragma GCC unroll 4
+    for (std::size_t j = 0; j < W; ++j) carry[g][j] = x[chunk_begin(W * g + j, c)];
+    at<V>(lanes + W * g).v = carry[g];
+  }
+  std::size_t t = 1;
+  for (; t + W <= c; t += W) {
+#pragma GCC unroll 16
+    for (std::size_t g = 0; g < G; ++g) {
+      V r[W];
+#pragma GCC unroll 4
+      for (std::size_t j = 0; j < W; ++j) r[j] = at<V>(x + chunk_begin(W * g + j, c) + t).v;
+      transpose(r);
+#pragma GCC unroll 4
+      for (std::size_t j = 0; j < W; ++j) {
+        carry[g] = r[j] - at<V>(s.lane_off + (t + j - 1) * kChunks + W * g).v * carry[g];
+        at<V>(lanes + (t + j) * kChunks + W * g).v = carry[g];
+      }
     }
   }
-  for (std::size_t i = last + c; i < n; ++i) x[i] -= e[i - 1] * x[i - 1];
+  for (; t < c; ++t) {
+#pragma GCC unroll 16
+    for (std::size_t g = 0; g < G; ++g) {
+      V r;
+#pragma GCC unroll 4
+      for (std::size_t j = 0; j < W; ++j) r[j] = x[chunk_begin(W * g + j, c) + t];
+      carry[g] = r - at<V>(s.lane_off + (t - 1) * kChunks + W * g).v * carry[g];
+      at<V>(lanes + t * kChunks + W * g).v = carry[g];
+    }
+  }
+  if (rest < n) {
+    x[rest] -= e[rest - 1] * lanes[(c - 1) * kChunks + kChunks - 1];
+    for (std::size_t i = rest + 1; i < n; ++i) x[i] -= e[i - 1] * x[i - 1];
+  }
+  // The corrections y_i += g_i y_{s−1}, where g reaches (t < reach: a mask), and the scaling by
+  // 1/d_i are one pass with the backward recurrence, D Lᵀ z = y, over the lanes from their ends
+  // (each element is corrected and scaled, then takes its step of the recurrence). The corrected
+  // values y_{s−1} first: each chunk's needs the previous chunk's, corrected. Then the last
+  // chunk's rest, all three passes (its values are final), which the last lane continues from.
+  alignas(32) double before[kChunks] = {}, reach[kChunks] = {};
   for (std::size_t p = 1; p < kChunks; ++p) {
-    const std::size_t lo = chunk_begin(p, c);
-    const double before = x[lo - 1];
-    const double* g = b.forward.data() + lo;
-    double* y = x + lo;
-    for (std::size_t i = 0; i < b.forward_reach[p]; ++i) y[i] += g[i] * before;
+    double y = lanes[(c - 1) * kChunks + p - 1];
+    if (c - 1 < s.forward_reach[p - 1]) y += s.forward[chunk_begin(p, c) - 1] * before[p - 1];
+    before[p] = y;
+    reach[p] = static_cast<double>(s.forward_reach[p]);
   }
-  const double* inverse_d = b.inverse_diag.data();
-  for (std::size_t i = 0; i < n; ++i) x[i] *= inverse_d[i];
-  // Backward, D Lᵀ z = y: the last chunk's rest first (its values are final), then the chunks
-  // side by side from their ends (the last chunk continuing from its rest), then the corrections
-  // from the last chunk down.
-  for (std::size_t i = n - 1; i-- > last + c;) x[i] -= e[i] * x[i + 1];
-  carry.fill(0.0);
-  if (last + c < n) carry[kChunks - 1] = x[last + c];
-  for (std::size_t t = 0; t < c; ++t) {
-    for (std::size_t p = 0; p < kChunks; ++p) {
-      const std::size_t i = chunk_begin(p, c) + c - 1 - t;
-      carry[p] = x[i] - e[i] * carry[p];
-      x[i] = carry[p];
+#pragma GCC unroll 16
+  for (std::size_t g = 0; g < G; ++g) carry[g] = V{};
+  if (rest < n) {
+    const double y = before[kChunks - 1];
+    for (std::size_t i = rest; i < last + s.forward_reach[kChunks - 1]; ++i)
+      x[i] += s.forward[i] * y;
+    for (std::size_t i = rest; i < n; ++i) x[i] *= s.inverse_diag[i];
+    for (std::size_t i = n - 1; i-- > rest;) x[i] -= e[i] * x[i + 1];
+    carry[G - 1][W - 1] = x[rest];
+  }
+  for (std::size_t row = c; row-- > 0;) {
+    V tv;
+#pragma GCC unroll 4
+    for (std::size_t j = 0; j < W; ++j) tv[j] = static_cast<double>(row);
+#pragma GCC unroll 16
+    for (std::size_t g = 0; g < G; ++g) {
+      const std::size_t k = row * kChunks + W * g;
+      const V y = at<V>(lanes + k).v;
+      const V corrected = y + at<V>(s.lane_forward + k).v * at<V>(before + W * g).v;
+      const V scaled = (tv < at<V>(reach + W * g).v ? corrected : y) * at<V>(s.lane_inverse + k).v;
+      carry[g] = scaled - at<V>(s.lane_off + k).v * carry[g];
+      at<V>(lanes + k).v = carry[g];
     }
   }
+  // The corrections z_i += h_i z_{s+c} (from row c − reach on: a mask), fused with the copy back to
+  // x (W × W transposes). The corrected values z_{s+c} first, from the last chunk down.
+  alignas(32) double after[kChunks] = {}, from[kChunks] = {};
+  after[kChunks - 2] = lanes[kChunks - 1];
+  from[kChunks - 1] = static_cast<double>(c);
   for (std::size_t p = kChunks - 1; p-- > 0;) {
-    const std::size_t hi = chunk_begin(p + 1, c);
-    const double after = x[hi];
-    const std::size_t reach = b.backward_reach[p];
-    const double* h = b.backward.data() + hi - reach;
-    double* z = x + hi - reach;
-    for (std::size_t i = 0; i < reach; ++i) z[i] += h[i] * after;
+    from[p] = static_cast<double>(c - s.backward_reach[p]);
+    if (p == 0) break;
+    double z = lanes[p];
+    if (s.backward_reach[p] == c) z += s.backward[chunk_begin(p, c)] * after[p];
+    after[p - 1] = z;
   }
+  std::size_t row = 0;
+  for (; row + W <= c; row += W) {
+    V tv;
+#pragma GCC unroll 4
+    for (std::size_t j = 0; j < W; ++j) tv[j] = static_cast<double>(row + j);
+#pragma GCC unroll 16
+    for (std::size_t g = 0; g < G; ++g) {
+      V r[W];
+#pragma GCC unroll 4
+      for (std::size_t j = 0; j < W; ++j) r[j] = at<V>(lanes + (row + j) * kChunks + W * g).v;
+      transpose(r);
+#pragma GCC unroll 4
+      for (std::size_t j = 0; j < W; ++j) {
+        const std::size_t p = W * g + j, i = chunk_begin(p, c) + row;
+        const V corrected = r[j] + at<V>(s.backward + i).v * after[p];
+        at<V>(x + i).v = tv >= from[p] ? corrected : r[j];
+      }
+    }
+  }
+  for (; row < c; ++row) {
+    for (std::size_t p = 0; p < kChunks; ++p) {
+      const std::size_t i = chunk_begin(p, c) + row;
+      double z = lanes[row * kChunks + p];
+      if (static_cast<double>(row) >= from[p]) z += s.backward[i] * after[p];
+      x[i] = z;
+    }
+  }
+}
+
+// A portable x86-64 build gets an AVX2 version (4 doubles a vector) beside the SSE2 one (2),
+// picked by the dynamic loader (GCC's function multiversioning: an ifunc, as FRACVI_HOT_KERNEL's
+// clones, but with a different width in each body).
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__AVX2__)
+__attribute__((target("default"))) void chunked_solve(const ChunkedSolve& s, double* x) noexcept {
+  chunked_solve_lanes<Lanes2>(s, x);
+}
+__attribute__((target("arch=x86-64-v3"))) void chunked_solve(const ChunkedSolve& s,
+                                                             double* x) noexcept {
+  chunked_solve_lanes<Lanes4>(s, x);
+}
+#elif defined(__AVX__)
+void chunked_solve(const ChunkedSolve& s, double* x) noexcept {
+  chunked_solve_lanes<Lanes4>(s, x);
+}
+#else
+void chunked_solve(const ChunkedSolve& s, double* x) noexcept {
+  chunked_solve_lanes<Lanes2>(s, x);
+}
+#endif
+
+}  // namespace
+
+void SymmetricFactor::tridiagonal_chunked_solve(const Banded& b, double* x) noexcept {
+  const ChunkedSolve s{static_cast<std::size_t>(b.n),
+                       b.chunk,
+                       b.off.data(),
+                       b.forward.data(),
+                       b.backward.data(),
+                       b.inverse_diag.data(),
+                       b.lane_off.data(),
+                       b.lane_forward.data(),
+                       b.lane_inverse.data(),
+                       b.forward_reach.data(),
+                       b.backward_reach.data(),
+                       b.lanes.data()};
+  chunked_solve(s, x);
 }
 
 SymmetricFactor::SymmetricFactor(std::shared_ptr<const SymmetricPattern> pattern,
@@ -382,6 +569,8 @@ SymmetricFactor::SymmetricFactor(std::shared_ptr<const SymmetricPattern> pattern
         b.forward.assign(n, 0.0);
         b.backward.assign(n, 0.0);
         b.inverse_diag.assign(n, 0.0);
+        for (std::vector<double>* v : {&b.lane_off, &b.lane_forward, &b.lane_inverse, &b.lanes})
+          v->assign(kChunks * b.chunk, 0.0);
       }
       for (const auto& e : p.entries()) {
         const auto i = static_cast<std::size_t>(e.row);
