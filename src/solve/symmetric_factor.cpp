@@ -255,6 +255,84 @@ bool tridiagonal_ldlt(std::size_t n, const double* a, const double* e, double* d
   return non_positive == 0;
 }
 
+namespace {
+
+// The kChunks recurrences of a chunked solve are kChunks lanes of SIMD vectors: element p c + t
+// (chunk p, row t) is at t kChunks + p of an interleaved ("lanes") copy, so that row t of every
+// chunk is kChunks/W contiguous vectors of W doubles. Walking the chunks at stride c instead, GCC
+// left the recurrences scalar (16 loads, multiplies, subtractions and stores per row: ≈ 40 % of
+// the solve in perf), and the corrections and the scaling were three more passes over x. Here
+// there are three: the forward recurrence, reading x through W × W register transposes; the
+// corrections, the scaling and the backward recurrence together; the backward corrections,
+// writing x through transposes. e, g and 1/d are interleaved once per factorisation
+// (prepare_chunked_solve). d = 1000 (bench/tridiagonal_bench, AVX2): the solve ≈ 1.7 → 1.0 µs,
+// a factorisation ≈ 5.2 → 5.5 µs.
+// Every element gets the operations of the sequential chunked solve in the same order (a lane is
+// a chunk's recurrence; a correction is selected by a mask where its spike reaches, as adding a
+// zero would turn −0 into +0; this file is compiled with -ffp-contract=off, so the AVX2 version
+// has no FMA either): the numbers are the same bit for bit (symmetric_factor_test).
+// GNU vector extensions (GCC, Clang): V is W doubles, elementwise arithmetic, and a comparison
+// gives a mask of 0 / −1 integers that `mask ? a : b` selects with.
+typedef double Lanes2 __attribute__((vector_size(2 * sizeof(double))));
+typedef double Lanes4 __attribute__((vector_size(4 * sizeof(double))));
+
+template <class V>
+constexpr std::size_t kWidth = sizeof(V) / sizeof(double);
+
+// Unaligned access to W doubles (as Clang's own intrinsics do it: a packed may_alias struct; by
+// reference, since passing a 32-byte vector by value to a function changes the ABI without AVX).
+template <class V>
+struct __attribute__((packed, may_alias)) Unaligned {
+  V v;
+};
+template <class V>
+[[gnu::always_inline]] inline const Unaligned<V>& at(const double* p) {
+  return *reinterpret_cast<const Unaligned<V>*>(p);
+}
+template <class V>
+[[gnu::always_inline]] inline Unaligned<V>& at(double* p) {
+  return *reinterpret_cast<Unaligned<V>*>(p);
+}
+
+// r[j] (lanes of row j) ↦ r[j] (rows of lane j). (A build uses one width or both.)
+[[maybe_unused, gnu::always_inline]] inline void transpose(Lanes2 (&r)[2]) {
+  const Lanes2 a = __builtin_shufflevector(r[0], r[1], 0, 2);
+  const Lanes2 b = __builtin_shufflevector(r[0], r[1], 1, 3);
+  r[0] = a;
+  r[1] = b;
+}
+[[maybe_unused, gnu::always_inline]] inline void transpose(Lanes4 (&r)[4]) {
+  const Lanes4 t0 = __builtin_shufflevector(r[0], r[1], 0, 4, 2, 6);
+  const Lanes4 t1 = __builtin_shufflevector(r[0], r[1], 1, 5, 3, 7);
+  const Lanes4 t2 = __builtin_shufflevector(r[2], r[3], 0, 4, 2, 6);
+  const Lanes4 t3 = __builtin_shufflevector(r[2], r[3], 1, 5, 3, 7);
+  r[0] = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
+  r[1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
+  r[2] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
+  r[3] = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
+}
+
+// v[p c + t] ↦ lanes[t kChunks + p] for the chunks' first c rows, two rows at a time through 2 × 2
+// transposes (element by element, at stride kChunks, this was half of a factorisation at d = 10^4).
+void interleave(const double* v, std::size_t c, double* lanes) noexcept {
+  std::size_t t = 0;
+  for (; t + 2 <= c; t += 2) {
+#pragma GCC unroll 8
+    for (std::size_t p = 0; p < kChunks; p += 2) {
+      Lanes2 r[2] = {at<Lanes2>(v + chunk_begin(p, c) + t).v,
+                     at<Lanes2>(v + chunk_begin(p + 1, c) + t).v};
+      transpose(r);
+      at<Lanes2>(lanes + t * kChunks + p).v = r[0];
+      at<Lanes2>(lanes + (t + 1) * kChunks + p).v = r[1];
+    }
+  }
+  for (; t < c; ++t) {
+    for (std::size_t p = 0; p < kChunks; ++p) lanes[t * kChunks + p] = v[chunk_begin(p, c) + t];
+  }
+}
+
+}  // namespace
+
 void SymmetricFactor::prepare_chunked_solve(Banded& b) noexcept {
   const auto n = static_cast<std::size_t>(b.n);
   const std::size_t c = b.chunk;
@@ -303,13 +381,9 @@ void SymmetricFactor::prepare_chunked_solve(Banded& b) noexcept {
     if (!extended) break;
   }
   // The interleaved copies (beyond a spike's reach, g_i is stale or 0: the solve masks it out).
-  for (std::size_t p = 0; p < kChunks; ++p) {
-    for (std::size_t t = 0; t < c; ++t) {
-      b.lane_off[t * kChunks + p] = e[p * c + t];
-      b.lane_forward[t * kChunks + p] = forward[p * c + t];
-      b.lane_inverse[t * kChunks + p] = b.inverse_diag[p * c + t];
-    }
-  }
+  interleave(e, c, b.lane_off.data());
+  interleave(forward, c, b.lane_forward.data());
+  interleave(b.inverse_diag.data(), c, b.lane_inverse.data());
   b.use_chunks = true;
 }
 
@@ -323,60 +397,6 @@ struct ChunkedSolve {
   const std::size_t *forward_reach, *backward_reach;
   double* lanes;  // kChunks·c scratch, interleaved
 };
-
-// The kChunks recurrences of a chunked solve are kChunks lanes of SIMD vectors: element p c + t
-// (chunk p, row t) is at t kChunks + p of an interleaved ("lanes") copy, so that row t of every
-// chunk is kChunks/W contiguous vectors of W doubles. Walking the chunks at stride c instead, GCC
-// left the recurrences scalar (16 loads, multiplies, subtractions and stores per row: ≈ 40 % of
-// the solve in perf), and the corrections and the scaling were three more passes over x. Here
-// there are three: the forward recurrence, reading x through W × W register transposes; the
-// corrections, the scaling and the backward recurrence together; the backward corrections,
-// writing x through transposes. e, g and 1/d are interleaved once per factorisation
-// (prepare_chunked_solve). d = 1000 (bench/tridiagonal_bench): 1.66 → 0.97 µs with AVX2.
-// Every element gets the operations of the sequential chunked solve in the same order (a lane is
-// a chunk's recurrence; a correction is selected by a mask where its spike reaches, as adding a
-// zero would turn −0 into +0; this file is compiled with -ffp-contract=off, so the AVX2 version
-// has no FMA either): the numbers are the same bit for bit (symmetric_factor_test).
-// GNU vector extensions (GCC, Clang): V is W doubles, elementwise arithmetic, and a comparison
-// gives a mask of 0 / −1 integers that `mask ? a : b` selects with.
-typedef double Lanes2 __attribute__((vector_size(2 * sizeof(double))));
-typedef double Lanes4 __attribute__((vector_size(4 * sizeof(double))));
-
-template <class V>
-constexpr std::size_t kWidth = sizeof(V) / sizeof(double);
-
-// Unaligned access to W doubles (as Clang's own intrinsics do it: a packed may_alias struct; by
-// reference, since passing a 32-byte vector by value to a function changes the ABI without AVX).
-template <class V>
-struct __attribute__((packed, may_alias)) Unaligned {
-  V v;
-};
-template <class V>
-[[gnu::always_inline]] inline const Unaligned<V>& at(const double* p) {
-  return *reinterpret_cast<const Unaligned<V>*>(p);
-}
-template <class V>
-[[gnu::always_inline]] inline Unaligned<V>& at(double* p) {
-  return *reinterpret_cast<Unaligned<V>*>(p);
-}
-
-// r[j] (lanes of row j) ↦ r[j] (rows of lane j). (A build uses one width or both.)
-[[maybe_unused, gnu::always_inline]] inline void transpose(Lanes2 (&r)[2]) {
-  const Lanes2 a = __builtin_shufflevector(r[0], r[1], 0, 2);
-  const Lanes2 b = __builtin_shufflevector(r[0], r[1], 1, 3);
-  r[0] = a;
-  r[1] = b;
-}
-[[maybe_unused, gnu::always_inline]] inline void transpose(Lanes4 (&r)[4]) {
-  const Lanes4 t0 = __builtin_shufflevector(r[0], r[1], 0, 4, 2, 6);
-  const Lanes4 t1 = __builtin_shufflevector(r[0], r[1], 1, 5, 3, 7);
-  const Lanes4 t2 = __builtin_shufflevector(r[2], r[3], 0, 4, 2, 6);
-  const Lanes4 t3 = __builtin_shufflevector(r[2], r[3], 1, 5, 3, 7);
-  r[0] = __builtin_shufflevector(t0, t2, 0, 1, 4, 5);
-  r[1] = __builtin_shufflevector(t1, t3, 0, 1, 4, 5);
-  r[2] = __builtin_shufflevector(t0, t2, 2, 3, 6, 7);
-  r[3] = __builtin_shufflevector(t1, t3, 2, 3, 6, 7);
-}
 
 template <class V>
 [[gnu::always_inline]] inline void chunked_solve_lanes(const ChunkedSolve& s, double* x) noexcept {
