@@ -8,6 +8,7 @@
 // iterations per step, and the same run on one thread (the 2-core speed-up) — both in one
 // process, so the ratio is measured under the same conditions. Arguments (all optional):
 //   fractional_chain [d=1000] [N=1000000] [threads=0] [compare_one_thread=1] [quartic=1]
+//                    [history_tolerance=1e-10]
 // Not part of the tests (bench/RESULTS.md records the numbers).
 #include <sys/resource.h>
 
@@ -26,7 +27,7 @@ struct Measured {
   fracvi::Solution solution;
 };
 
-Measured run(Eigen::Index d, std::size_t n, int threads, double quartic) {
+Measured run(Eigen::Index d, std::size_t n, int threads, double quartic, double tolerance) {
   fracvi::InitialValueProblem p;
   p.model.mass = fracvi::ModelMatrix::identity(d, 1.0);
   p.model.damping = fracvi::ModelMatrix::identity(d, 0.5);
@@ -47,7 +48,7 @@ Measured run(Eigen::Index d, std::size_t n, int threads, double quartic) {
   p.steps = n;
   fracvi::IntegratorOptions o;
   o.history = fracvi::HistoryKind::kFast;
-  o.history_tolerance = 1e-10;
+  o.history_tolerance = tolerance;
   o.mirror = false;
   o.save_every = 10000;
   o.threads = threads;
@@ -62,11 +63,11 @@ void report(const char* label, const Measured& m, std::size_t n) {
   const fracvi::Solution& s = m.solution;
   std::printf(
       "%-10s wall %.2f s  (%.2f us/step)  status %s  newton/step %.2f  history %.2f MB  "
-      "solver %s  final energy %.6g  balance %.2e\n",
+      "solver %s  K %zu  final energy %.6g  balance %.2e\n",
       label, m.seconds, 1e6 * m.seconds / static_cast<double>(n),
       std::string(fracvi::to_string(s.status)).c_str(),
       static_cast<double>(s.newton_iterations) / static_cast<double>(s.steps_done),
-      static_cast<double>(s.history_bytes) / 1e6, s.linear_solver.c_str(),
+      static_cast<double>(s.history_bytes) / 1e6, s.linear_solver.c_str(), s.history_exponentials,
       s.energy(s.energy.size() - 1), s.max_balance_error);
 }
 
@@ -78,12 +79,13 @@ int main(int argc, char** argv) {
   const int threads = argc > 3 ? std::atoi(argv[3]) : 0;
   const bool compare = argc > 4 ? std::atoi(argv[4]) != 0 : true;
   const double quartic = argc > 5 ? std::atof(argv[5]) : 1.0;
-  std::printf("fractional FPUT chain: d = %ld, N = %zu, beta = 1.5, quartic = %g, eps = 1e-10\n",
-              static_cast<long>(d), n, quartic);
-  const Measured all = run(d, n, threads, quartic);
+  const double tolerance = argc > 6 ? std::atof(argv[6]) : 1e-10;
+  std::printf("fractional FPUT chain: d = %ld, N = %zu, beta = 1.5, quartic = %g, eps = %g\n",
+              static_cast<long>(d), n, quartic, tolerance);
+  const Measured all = run(d, n, threads, quartic, tolerance);
   report("threads=all", all, n);
   if (compare) {
-    const Measured one = run(d, n, 1, quartic);
+    const Measured one = run(d, n, 1, quartic, tolerance);
     report("threads=1", one, n);
     std::printf("speed-up on all cores: %.2f\n", one.seconds / all.seconds);
   }

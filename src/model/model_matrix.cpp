@@ -5,7 +5,23 @@
 #include <stdexcept>
 #include <string>
 
+#include "fracvi/internal/vectorize.hpp"
+
 namespace fracvi {
+
+namespace {
+
+// y_i = a_i x_i: one product per element, so every clone gives the same numbers (no FMA to
+// contract). The chains' M and R are diagonal and a step takes two or three of these products;
+// through an Eigen Ref the portable build did them at ≈ 2.4 instructions per element
+// (callgrind, d = 1000), the x86-64-v3 clone at ≈ 0.6.
+FRACVI_HOT_KERNEL
+void diagonal_product(const double* a, const double* x, double* y, Eigen::Index n) noexcept {
+#pragma omp simd
+  for (Eigen::Index i = 0; i < n; ++i) y[i] = a[i] * x[i];
+}
+
+}  // namespace
 
 void ModelMatrix::cache_diagonal() {
   diagonal_.resize(0);
@@ -16,7 +32,7 @@ void ModelMatrix::cache_diagonal() {
 void ModelMatrix::multiply_general(const Eigen::Ref<const Eigen::VectorXd>& x,
                                    Eigen::Ref<Eigen::VectorXd> y) const {
   if (diagonal_.size() > 0) {
-    y.array() = diagonal_.array() * x.array();
+    diagonal_product(diagonal_.data(), x.data(), y.data(), y.size());
   } else if (is_sparse_) {
     y.noalias() = sparse_ * x;
   } else {

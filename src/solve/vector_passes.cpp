@@ -63,4 +63,9 @@ double dot(const double* a, const double* b, Eigen::Index n) {
   return loops::dot(a, b, n);
 }
 
+FRACVI_HOT_KERNEL
+double weighted_squares(const double* w, const double* x, Eigen::Index n) {
+  return loops::weighted_squares(w, x, n);
+}
+
 }  // namespace fracvi::internal::kernels

@@ -157,6 +157,16 @@ FRACVI_PASS double dot(const double* a, const double* b, Eigen::Index n) {
   return sum;
 }
 
+FRACVI_PASS double weighted_squares(const double* w, const double* x, Eigen::Index n) {
+  double sum = 0.0;
+#pragma omp simd reduction(+ : sum)
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double y = w[i] * x[i];
+    sum += y * y;
+  }
+  return sum;
+}
+
 #undef FRACVI_PASS
 
 }  // namespace loops
@@ -178,6 +188,7 @@ void subtract_scaled(const double* a, double s, const double* b, double* out, Ei
 void shifted(const double* x, const double* x0, double t, const double* v0, double* out,
              Eigen::Index n);
 double dot(const double* a, const double* b, Eigen::Index n);
+double weighted_squares(const double* w, const double* x, Eigen::Index n);
 }  // namespace kernels
 
 // The passes (n elements each; the pointers may not overlap except where an argument is read and
@@ -240,6 +251,11 @@ inline void shifted_pass(const double* x, const double* x0, double t, const doub
 /// smaller systems keep Eigen's, whose bits their outputs were checked with).
 inline double dot_pass(const double* a, const double* b, Eigen::Index n) {
   return kernels::dot(a, b, n);
+}
+/// Σ (w_i x_i)² for n ≥ kVectorPassesFrom (the health check's ‖x‖²_M for a diagonal M, w = √m),
+/// in the order of an OpenMP simd reduction.
+inline double weighted_squares_pass(const double* w, const double* x, Eigen::Index n) {
+  return kernels::weighted_squares(w, x, n);
 }
 
 }  // namespace fracvi::internal
