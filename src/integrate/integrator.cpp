@@ -321,8 +321,8 @@ struct Integrator::Impl {
   Impl(InitialValueProblem prob, Method meth, IntegratorOptions opts)
       : problem(std::move(prob)),
         method(meth),
-        budget(
-            history_budget(problem, method.declared_order(problem.model), opts.history_tolerance)),
+        budget(history_budget(problem, method.declared_order(problem.model), opts.history_tolerance,
+                              method.info().history_budget_ceiling)),
         options(with_tolerance(opts, budget.tolerance)),
         d(problem.model.dimension()),
         n_steps(problem.steps),

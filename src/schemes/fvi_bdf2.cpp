@@ -20,6 +20,7 @@ const SchemeInfo kFviBdf2{
     .has_mirror = true,
     .exact_balance = true,
     .fast_history = true,
+    .history_budget_ceiling = kMeasuredHistoryCeiling,  // κ measured for it (history_budget.hpp)
     .momentum_quadrature = CqScheme::kBdf2,
     .forcing_moments = true,  // method.load = "moments": the cell average of f
     .checkpoints = true,

@@ -330,6 +330,7 @@ const SchemeInfo kFviMidpoint{
     .has_mirror = true,
     .exact_balance = true,
     .fast_history = true,  // both memory sums are GL sums (orders 2α and 1 − 2α, lag 1)
+    .history_budget_ceiling = kMeasuredHistoryCeiling,  // κ measured for it (history_budget.hpp)
     .momentum_quadrature = CqScheme::kTrapezoidal,
     .forcing_moments = true,  // method.load = "moments": the cell average of f
     .checkpoints = true,

@@ -31,12 +31,14 @@ double history_error_constant(double beta) {
 }
 
 double stepper_history_tolerance(const IntegratorOptions& options) {
-  return options.history_tolerance == kAutoHistoryTolerance ? kAutoHistoryCeiling
+  return options.history_tolerance == kAutoHistoryTolerance ? kUnbudgetedHistoryTolerance
                                                             : options.history_tolerance;
 }
 
-HistoryBudget history_budget(const InitialValueProblem& problem, int order, double user_tolerance) {
+HistoryBudget history_budget(const InitialValueProblem& problem, int order, double user_tolerance,
+                             double ceiling) {
   HistoryBudget budget;
+  budget.tolerance = budget.requested = ceiling;
   if (user_tolerance != kAutoHistoryTolerance) {
     budget.tolerance = budget.requested = user_tolerance;
     budget.automatic = false;
@@ -49,13 +51,15 @@ HistoryBudget history_budget(const InitialValueProblem& problem, int order, doub
   if (!(r > 0.0)) return budget;
   const double h = problem.step_size();
   const int p = std::max(order, 1);
-  // e_H = c_H(β) r ε h^{−β} X ≤ φ κ h^p X  (history_budget.hpp; fast_history.md §10), in logs so
-  // that h^{p+β} cannot underflow.
+  // e_H = c_H(β) r ε h^{−β} X ≤ φ κ_r h^p X with κ_r = κ r/λ_ref below λ_ref and κ λ_ref/r above
+  // (history_budget.hpp; fast_history.md §10), in logs so that h^{p+β} cannot underflow.
+  const double ratio = r / kHistoryBudgetReferenceDamping;
+  const double damping = kHistoryBudgetReferenceDamping * std::max(1.0, ratio * ratio);
   const double log_eps = std::log(kHistoryBudgetShare * kHistoryBudgetDiscretisation /
-                                  (history_error_constant(beta) * r)) +
+                                  (history_error_constant(beta) * damping)) +
                          (p + beta) * std::log(h);
   budget.requested = std::exp(log_eps);
-  budget.tolerance = std::clamp(budget.requested, kMinHistoryTolerance, kAutoHistoryCeiling);
+  budget.tolerance = std::clamp(budget.requested, kMinHistoryTolerance, ceiling);
   budget.limited = budget.requested < kMinHistoryTolerance;
   return budget;
 }

@@ -13,8 +13,13 @@
 //     discretisation error e_D ≈ κ · h^p · X,                           κ = 1e-2 (conservative),
 //
 // (c_H from 2.2e-7 at 2α = 1.8 to 5.9e-4 at 2α = 0.5: history_error_constant()), and the budget
-// e_H ≤ φ·e_D with φ = 0.1 gives ε = φ κ h^{p+2α} / (c_H λ_max(M⁻¹R)), clamped to
-// [kMinHistoryTolerance, kAutoHistoryCeiling].
+// e_H ≤ φ·e_D with φ = 0.1 gives ε = φ κ h^{p+2α} / (c_H λ_ref max(1, (λ/λ_ref)²)), λ =
+// λ_max(M⁻¹R), clamped to [kMinHistoryTolerance, the scheme's ceiling]. κ was measured at
+// λ_ref = 0.5, and e_D changes with λ: below λ_ref the damping's part of it shrinks like λ, as e_H
+// does (fvi-gl: e_D 1.8e-5, 6.6e-6, 6.6e-7 at λ = 0.5, 0.01, 0.001, N = 10^5), so a weak damping
+// does not loosen ε; above λ_ref the damped solution and its error shrink (λ = 5: 2.8× for fvi-gl
+// at N = 10^5, 14× for fvi-bdf2 and 26× for fvi-midpoint at 10^4), so ε tightens like 1/λ², not
+// 1/λ.
 #pragma once
 
 #include <cstddef>
@@ -24,9 +29,23 @@
 
 namespace fracvi {
 
-/// The loosest ε "auto" chooses: the former fixed default. A looser fit would save little (K grows
-/// like log(1/ε)) and would change runs that were already accurate.
+/// The loosest ε "auto" chooses for a scheme whose error the model's κ h^p was not measured
+/// against (SchemeInfo::history_budget_ceiling): the former fixed default. Such a scheme may be far
+/// more accurate than κ h^p says — fvi-lobatto3 at 2α = 1.5 reaches 8.7e-10 at h = 1.25e-3, 1/18
+/// of κ h² — and a looser ε would let the history dominate its error (measured with 1e-6: a
+/// plateau at 3.7e-10 in the order tests, docs/theory/fast_history.md §10.3).
 inline constexpr double kAutoHistoryCeiling = 1e-10;
+/// The loosest ε "auto" chooses for fvi-gl, fvi-bdf2 and fvi-midpoint, whose error constants κ is
+/// 9–18× below (measured on the test problem). Looser than 1e-10 where the budget allows it: at
+/// d = 1000, N = 10^5, h = 0.01 the fit needs K = 28 exponentials instead of 41, ≈ 20 % of the
+/// chain's step on one thread; the model's own estimate is not trusted further (it was 55× low on
+/// a chain with slow modes over a long run, where e_H was still 1.3e-4 of e_D at ε = 1e-3).
+inline constexpr double kMeasuredHistoryCeiling = 1e-6;
+/// λ_ref: the damping λ_max(M⁻¹R) of the problem κ was measured on (the budget's use of it: above).
+inline constexpr double kHistoryBudgetReferenceDamping = 0.5;
+/// The ε of a stepper built without a budget (SchemeInfo::make_stepper with "auto"), which knows
+/// nothing of the run: the former fixed default.
+inline constexpr double kUnbudgetedHistoryTolerance = 1e-10;
 /// The model's constants (docs/theory/fast_history.md §10): φ, the share of the discretisation
 /// error estimate the history may take; κ, the constant of that a-priori estimate κ h^p (measured
 /// 0.18 for fvi-gl, 0.16 for fvi-bdf2 and 0.087 for fvi-midpoint on the test problem: κ is 9–18×
@@ -55,13 +74,15 @@ struct HistoryBudget {
 
 /// The ε a stepper passes to its fast history: the number in `options`, or for
 /// kAutoHistoryTolerance — which the Integrator replaces by history_budget() before it constructs
-/// the stepper — kAutoHistoryCeiling (a stepper built directly, SchemeInfo::make_stepper).
+/// the stepper — kUnbudgetedHistoryTolerance (a stepper built directly, SchemeInfo::make_stepper).
 double stepper_history_tolerance(const IntegratorOptions& options);
 
 /// The budget for `problem` run by a scheme of order `order` (Method::declared_order for the
 /// model); `user_tolerance` is IntegratorOptions::history_tolerance: a number is honoured exactly,
-/// kAutoHistoryTolerance (0) asks for the budget. Undamped and integer-order problems have no
-/// fast history and get the ceiling.
-HistoryBudget history_budget(const InitialValueProblem& problem, int order, double user_tolerance);
+/// kAutoHistoryTolerance (0) asks for the budget, clamped to [kMinHistoryTolerance, `ceiling`]
+/// (SchemeInfo::history_budget_ceiling). Undamped and integer-order problems have no fast history
+/// and get the ceiling.
+HistoryBudget history_budget(const InitialValueProblem& problem, int order, double user_tolerance,
+                             double ceiling = kAutoHistoryCeiling);
 
 }  // namespace fracvi

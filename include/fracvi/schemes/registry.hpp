@@ -17,6 +17,7 @@
 
 #include "fracvi/fractional/weights.hpp"
 #include "fracvi/model/mechanical_model.hpp"
+#include "fracvi/schemes/history_budget.hpp"
 #include "fracvi/schemes/options.hpp"
 #include "fracvi/schemes/stepper.hpp"
 
@@ -59,6 +60,10 @@ struct SchemeInfo {
   /// step). "auto" uses it where it pays. Without it the memory is summed directly (O(N) per
   /// step) and "fast" is refused before step 1.
   bool fast_history = false;
+  /// The loosest per-weight accuracy ε the fast history's accuracy budget may choose
+  /// (history_budget.hpp): kMeasuredHistoryCeiling for a scheme whose error constant the budget's
+  /// κ was measured against, kAutoHistoryCeiling otherwise.
+  double history_budget_ceiling = kAutoHistoryCeiling;
   /// The convolution quadrature (of order 2α) of the damping force in the scheme's momenta p_k.
   /// Its weights ω carry round-off in the positions into the velocities:
   /// ‖δp_k‖ ≤ (h/2) ‖R‖ h^{−2α} Σ_{m≤k} |ω_m| max_j ‖δx_j‖ (the method-parameterised tests use this
