@@ -12,6 +12,7 @@
 #include <string>
 
 #include "fracvi/core/error.hpp"
+#include "fracvi/internal/vectorize.hpp"
 #include "fracvi/model/model_matrix.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
 #include "fracvi/solve/symmetric_factor.hpp"
@@ -64,8 +65,13 @@ class MassSolver {
     if (dense_) {
       inverse_.multiply(p, out);
     } else if (unit_mass_) {
-      // A copy (the library's, not an SSE2 element loop: ≈ 2.5 instructions per element).
-      if (out.data() != p.data()) std::memcpy(out.data(), p.data(), sizeof(double) * p.size());
+      // A large system's copy is the library's (an SSE2 element loop was ≈ 2.5 instructions per
+      // element); a small one's stays inline (at d = 1 a call costs more than the copy).
+      if (p.size() < kVectorPassesFrom) {
+        out = p;
+      } else if (out.data() != p.data()) {
+        std::memcpy(out.data(), p.data(), sizeof(double) * static_cast<std::size_t>(p.size()));
+      }
     } else if (mass_diagonal_.size() > 0) {
       out.array() = p.array() / mass_diagonal_.array();
     } else {
