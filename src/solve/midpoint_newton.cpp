@@ -258,11 +258,10 @@ NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, d
   carry_ = false;  // until this call converges (update_carry)
   bool factor_now = !kept_from_earlier_call;
   double previous_correction = std::numeric_limits<double>::infinity();
-  // The scale of the convergence test; a linear step has none (one pass fewer per step).
-  const double a_norm = linear_ ? 0.0 : a.cwiseAbs().maxCoeff();
-  // The first iterate's midpoint; later ones come out of the correction pass.
+  // The first iterate's midpoint (later ones come out of the correction pass) and, in the same
+  // pass, the scale of the convergence test max|a_i| (a linear step has none).
   const Eigen::Index d = mid_.size();
-  midpoint_pass(a.data(), increment.data(), mid_.data(), d);
+  const double a_norm = midpoint_pass(a.data(), increment.data(), mid_.data(), d, !linear_);
   for (int it = 1; it <= max_iterations; ++it) {
     effective_gradient(mid_, tau, forcing_tau, grad_);
     if (state_force_ != nullptr) {

@@ -32,8 +32,9 @@ bool all_finite(const double* v, Eigen::Index n) {
 }
 
 FRACVI_HOT_KERNEL
-void midpoint(const double* a, const double* increment, double* out, Eigen::Index n) {
-  loops::midpoint(a, increment, out, n);
+double midpoint(const double* a, const double* increment, double* out, Eigen::Index n,
+                bool with_scale) {
+  return loops::midpoint(a, increment, out, n, with_scale);
 }
 
 FRACVI_HOT_KERNEL

@@ -108,7 +108,12 @@ TEST(VectorisedPasses, FusedPassesNoticeOneBadEntryAnywhereAndGiveTheirValues) {
       EXPECT_LE(((got - want).array().abs() - 4e-16 * size.array()).maxCoeff(), 0.0) << n;
     };
     const double t = 0.625;
-    internal::midpoint_pass(v.data(), w.data(), out.data(), n);
+    EXPECT_EQ(internal::midpoint_pass(v.data(), w.data(), out.data(), n), 0.0) << n;
+    EXPECT_EQ(out, v + 0.5 * w) << n;
+    out.setZero();
+    EXPECT_EQ(internal::midpoint_pass(v.data(), w.data(), out.data(), n, true),
+              v.cwiseAbs().maxCoeff())
+        << n;  // max|v_i| at a negative v_i
     EXPECT_EQ(out, v + 0.5 * w) << n;
     Eigen::VectorXd rhs(n);
     internal::start_momentum_pass(v.data(), g.data(), t, s, out.data(), rhs.data(), n);
@@ -127,6 +132,10 @@ TEST(VectorisedPasses, FusedPassesNoticeOneBadEntryAnywhereAndGiveTheirValues) {
     EXPECT_EQ(out, v - w) << n;
     internal::shifted_pass(v.data(), nullptr, t, nullptr, out.data(), n);
     EXPECT_EQ(out, v) << n;
+    const double squares = internal::weighted_squares_pass(m.data(), g.data(), n);
+    EXPECT_LE(std::abs(squares - (m.array() * g.array()).square().sum()),
+              4e-16 * static_cast<double>(n) * (m.array() * g.array()).square().sum())
+        << n;
     const double dot = internal::dot_pass(w.data(), g.data(), n);
     EXPECT_LE(std::abs(dot - w.dot(g)),
               4e-16 * static_cast<double>(n) * w.cwiseAbs().dot(g.cwiseAbs()))

@@ -107,9 +107,20 @@ FRACVI_PASS bool all_finite(const double* v, Eigen::Index n) {
   return zero == 0.0;
 }
 
-FRACVI_PASS void midpoint(const double* a, const double* increment, double* out, Eigen::Index n) {
+FRACVI_PASS double midpoint(const double* a, const double* increment, double* out, Eigen::Index n,
+                            bool with_scale) {
+  double scale = 0.0;
+  if (with_scale) {
+#pragma omp simd reduction(max : scale)
+    for (Eigen::Index i = 0; i < n; ++i) {
+      out[i] = a[i] + 0.5 * increment[i];
+      scale = std::max(scale, std::abs(a[i]));
+    }
+  } else {
 #pragma omp simd
-  for (Eigen::Index i = 0; i < n; ++i) out[i] = a[i] + 0.5 * increment[i];
+    for (Eigen::Index i = 0; i < n; ++i) out[i] = a[i] + 0.5 * increment[i];
+  }
+  return scale;
 }
 
 FRACVI_PASS void start_momentum(const double* p, const double* force, double impulse, double h,
@@ -180,7 +191,8 @@ bool general_residual(double s, const double* g, const double* c, double* out, E
 CorrectionPass apply_correction(const double* delta, const double* a, double* increment,
                                 double* mid, Eigen::Index n, bool with_next);
 bool all_finite(const double* v, Eigen::Index n);
-void midpoint(const double* a, const double* increment, double* out, Eigen::Index n);
+double midpoint(const double* a, const double* increment, double* out, Eigen::Index n,
+                bool with_scale);
 void start_momentum(const double* p, const double* force, double impulse, double h, double* p_plus,
                     double* rhs, Eigen::Index n);
 void scale_and_subtract(double s, const double* b, double* a, Eigen::Index n);
@@ -221,9 +233,11 @@ inline CorrectionPass apply_correction_pass(const double* delta, const double* a
 inline bool all_finite_pass(const double* v, Eigen::Index n) {
   return FRACVI_DISPATCH(all_finite, v, n);
 }
-/// out_i = a_i + Δ_i/2.
-inline void midpoint_pass(const double* a, const double* increment, double* out, Eigen::Index n) {
-  FRACVI_DISPATCH(midpoint, a, increment, out, n);
+/// out_i = a_i + Δ_i/2; with `with_scale` returns max|a_i| (the scale of Newton's convergence
+/// test), else 0.
+inline double midpoint_pass(const double* a, const double* increment, double* out, Eigen::Index n,
+                            bool with_scale = false) {
+  return FRACVI_DISPATCH(midpoint, a, increment, out, n, with_scale);
 }
 /// p⁺_i = p_i − w F_i and rhs_i = h p⁺_i.
 inline void start_momentum_pass(const double* p, const double* force, double impulse, double h,
