@@ -6,7 +6,6 @@
 #include <cassert>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -514,13 +513,8 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
 
 void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
   assert(size_ >= 1 && out.size() == ring_.rows());
-  // Formed by push() (never by the second thread). A large system's copy is the library's (an
-  // SSE2 element loop was ≈ 2.5 instructions per element); a small one's stays inline.
-  if (out.size() >= internal::kVectorPassesFrom) {
-    std::memcpy(out.data(), sum_.data(), sizeof(double) * static_cast<std::size_t>(sum_.size()));
-  } else {
-    out = sum_;
-  }
+  // sum_ is formed by push(), never by the second thread.
+  internal::copy_elements(sum_.data(), out.data(), out.size());
 }
 
 void FastHistory::configure_threads(int threads) {

@@ -7,7 +7,6 @@
 #pragma once
 
 #include <Eigen/Dense>
-#include <cstring>
 #include <memory>
 #include <string>
 
@@ -65,13 +64,7 @@ class MassSolver {
     if (dense_) {
       inverse_.multiply(p, out);
     } else if (unit_mass_) {
-      // A large system's copy is the library's (an SSE2 element loop was ≈ 2.5 instructions per
-      // element); a small one's stays inline (at d = 1 a call costs more than the copy).
-      if (p.size() < kVectorPassesFrom) {
-        out = p;
-      } else if (out.data() != p.data()) {
-        std::memcpy(out.data(), p.data(), sizeof(double) * static_cast<std::size_t>(p.size()));
-      }
+      copy_elements(p.data(), out.data(), p.size());
     } else if (mass_diagonal_.size() > 0) {
       out.array() = p.array() / mass_diagonal_.array();
     } else {
