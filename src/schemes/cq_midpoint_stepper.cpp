@@ -106,7 +106,7 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
       if (memory_start_ == MemoryStart::kTaylorSplit)
         add_polynomial_force(0, problem_.x0, problem_.v0, sum_);
       force_matrix_.multiply(sum_, force_);
-      mass_solver_.inverse_damping(sum_, w_);
+      mass_solver_.inverse_damping(sum_, force_, w_);
     }
   }
   if (diagnostics_) {
@@ -206,7 +206,7 @@ Status CqMidpointStepper::advance() {
   // Energy account (solution.hpp; start_step.md §4).
   double fv_next = 0.0, fw_next = 0.0;
   if (diagnostics_) {
-    if (damped_) mass_solver_.inverse_damping(sum_, w_next_);  // M⁻¹F_{k+1}
+    if (damped_) mass_solver_.inverse_damping(sum_, force_next_, w_next_);  // M⁻¹F_{k+1}
     if (d_ >= kVectorPassesFrom) {
       fv_next = dot_pass(force_next_.data(), v_next_.data(), d_);
       fw_next = dot_pass(force_next_.data(), w_next_.data(), d_);

@@ -1,9 +1,9 @@
 // v = M⁻¹p and w = M⁻¹(R' s) for the scaled damping R' = R h^{−2α} (internal to the schemes).
 //
 // A dense M keeps its explicit inverse and M⁻¹R' (one matrix–vector product each); a sparse M is
-// factored once, banded or sparse like the Newton matrix, and w costs one product with R' and one
-// solve. Diagonal M (chains): the solve is a quotient, fused with the product by a diagonal R' —
-// the same roundings as the factor's division, one pass instead of two or three.
+// factored once, banded or sparse like the Newton matrix, and w is the solve with the R' s the step
+// has formed (its damping force). Diagonal M (chains): the solve is a quotient, the same roundings
+// as the factor's division; M = I: a copy.
 #pragma once
 
 #include <Eigen/Dense>
@@ -48,14 +48,9 @@ class MassSolver {
     if (!factor_->factor()) {
       throw ValidationError("model.mass could not be factored (not positive definite)");
     }
-    damping_ = damping;
-    scratch_.resize(d);
     if (mass.is_diagonal()) {
       mass_diagonal_ = mass.sparse().diagonal();
       unit_mass_ = (mass_diagonal_.array() == 1.0).all();
-    }
-    if (mass.is_diagonal() && damping.is_sparse() && damping.is_diagonal()) {
-      damping_diagonal_ = damping.sparse().diagonal();
     }
   }
 
@@ -72,18 +67,16 @@ class MassSolver {
       factor_->solve_in_place(out);
     }
   }
-  /// out = M⁻¹ R' s
+  /// out = M⁻¹ R' s, given force = R' s (the step forms it anyway): M⁻¹ applied to it, except on
+  /// the dense path, which multiplies s by its M⁻¹R'. (On the other paths this is the quotient or
+  /// solve of R' s, the numbers of forming R' s again here, without the second product.)
   void inverse_damping(const Eigen::Ref<const Eigen::VectorXd>& s,
-                       Eigen::Ref<Eigen::VectorXd> out) {
+                       const Eigen::Ref<const Eigen::VectorXd>& force,
+                       Eigen::Ref<Eigen::VectorXd> out) const {
     if (dense_) {
       minv_damping_.multiply(s, out);
-    } else if (damping_diagonal_.size() > 0 && unit_mass_) {
-      damping_.multiply(s, out);  // R' diagonal: its vectorised product, the same numbers
-    } else if (damping_diagonal_.size() > 0) {
-      out.array() = (damping_diagonal_.array() * s.array()) / mass_diagonal_.array();
     } else {
-      damping_.multiply(s, scratch_);
-      inverse(scratch_, out);
+      inverse(force, out);
     }
   }
 
@@ -91,9 +84,7 @@ class MassSolver {
   bool dense_;
   ModelMatrix inverse_, minv_damping_;  // dense path: M⁻¹ and M⁻¹R' (1 × 1 products inline)
   std::unique_ptr<SymmetricFactor> factor_;
-  ModelMatrix damping_;
-  Eigen::VectorXd scratch_;
-  Eigen::VectorXd mass_diagonal_, damping_diagonal_;  // when M (and R') are diagonal
+  Eigen::VectorXd mass_diagonal_;  // when M is diagonal
   // M = I (chains of unit masses): the quotients by 1 are the identity, bit for bit, and a
   // division pass costs ≈ 1 µs per 1000 degrees of freedom in the SSE2 build.
   bool unit_mass_ = false;
