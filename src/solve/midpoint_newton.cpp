@@ -199,9 +199,9 @@ void MidpointNewton::update_carry(bool carried, bool fast) {
   }
 }
 
-void MidpointNewton::effective_gradient(const Eigen::Ref<const Eigen::VectorXd>& z, double tau,
+void MidpointNewton::effective_gradient(const Eigen::VectorXd& z, double tau,
                                         const Eigen::VectorXd* forcing_tau,
-                                        Eigen::Ref<Eigen::VectorXd> g) const {
+                                        Eigen::VectorXd& g) const {
   if (potential_ != nullptr) {
     potential_->gradient(z, tau, g);
   } else {
@@ -230,10 +230,8 @@ double MidpointNewton::state_force_work(const Eigen::Ref<const Eigen::VectorXd>&
   return force_value_.dot(increment);
 }
 
-NewtonReport MidpointNewton::solve(const Eigen::Ref<const Eigen::VectorXd>& a, double tau,
-                                   const Eigen::Ref<const Eigen::VectorXd>& c,
-                                   const Eigen::VectorXd* forcing_tau,
-                                   Eigen::Ref<Eigen::VectorXd> increment) {
+NewtonReport MidpointNewton::solve(const Eigen::VectorXd& a, double tau, const Eigen::VectorXd& c,
+                                   const Eigen::VectorXd* forcing_tau, Eigen::VectorXd& increment) {
   NewtonReport report;
   const int max_iterations = linear_ ? 1 : options_.max_iterations;
   // Simplified Newton on the structured backends: J is factored at the step's first iterate and

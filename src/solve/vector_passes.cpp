@@ -6,67 +6,67 @@ namespace fracvi::internal::kernels {
 
 FRACVI_HOT_KERNEL
 bool add_and_check(const double* a, const double* b, double* out, Eigen::Index n) {
-  return loops::add_and_check(a, b, out, n);
+  return loops::add_and_check<true>(a, b, out, n);
 }
 
 FRACVI_HOT_KERNEL
 bool diagonal_residual(const double* m, const double* increment, double s, const double* g,
                        const double* c, double* out, Eigen::Index n) {
-  return loops::diagonal_residual(m, increment, s, g, c, out, n);
+  return loops::diagonal_residual<true>(m, increment, s, g, c, out, n);
 }
 
 FRACVI_HOT_KERNEL
 bool general_residual(double s, const double* g, const double* c, double* out, Eigen::Index n) {
-  return loops::general_residual(s, g, c, out, n);
+  return loops::general_residual<true>(s, g, c, out, n);
 }
 
 FRACVI_HOT_KERNEL
 CorrectionPass apply_correction(const double* delta, const double* a, double* increment,
                                 double* mid, Eigen::Index n, bool with_next) {
-  return loops::apply_correction(delta, a, increment, mid, n, with_next);
+  return loops::apply_correction<true>(delta, a, increment, mid, n, with_next);
 }
 
 FRACVI_HOT_KERNEL
 bool all_finite(const double* v, Eigen::Index n) {
-  return loops::all_finite(v, n);
+  return loops::all_finite<true>(v, n);
 }
 
 FRACVI_HOT_KERNEL
 double midpoint(const double* a, const double* increment, double* out, Eigen::Index n,
                 bool with_scale) {
-  return loops::midpoint(a, increment, out, n, with_scale);
+  return loops::midpoint<true>(a, increment, out, n, with_scale);
 }
 
 FRACVI_HOT_KERNEL
 void start_momentum(const double* p, const double* force, double impulse, double h, double* p_plus,
                     double* rhs, Eigen::Index n) {
-  loops::start_momentum(p, force, impulse, h, p_plus, rhs, n);
+  loops::start_momentum<true>(p, force, impulse, h, p_plus, rhs, n);
 }
 
 FRACVI_HOT_KERNEL
 void scale_and_subtract(double s, const double* b, double* a, Eigen::Index n) {
-  loops::scale_and_subtract(s, b, a, n);
+  loops::scale_and_subtract<true>(s, b, a, n);
 }
 
 FRACVI_HOT_KERNEL
 void subtract_scaled(const double* a, double s, const double* b, double* out, Eigen::Index n) {
-  loops::subtract_scaled(a, s, b, out, n);
+  loops::subtract_scaled<true>(a, s, b, out, n);
 }
 
 FRACVI_HOT_KERNEL
 void shifted(const double* x, const double* x0, double t, const double* v0, double* out,
              Eigen::Index n) {
-  loops::shifted(x, x0, t, v0, out, n);
+  loops::shifted<true>(x, x0, t, v0, out, n);
 }
 
 FRACVI_HOT_KERNEL
 double dot(const double* a, const double* b, Eigen::Index n) {
-  return loops::dot(a, b, n);
+  return loops::dot<true>(a, b, n);
 }
 
 FRACVI_HOT_KERNEL
 double weighted_squares(const double* w, const double* x, Eigen::Index n) {
-  return loops::weighted_squares(w, x, n);
+  return loops::weighted_squares<true>(w, x, n);
 }
 
 }  // namespace fracvi::internal::kernels

@@ -6,7 +6,11 @@
 // check Σ 0·v_i and a max are exact in any order, so they are OpenMP simd reductions):
 //
 //   - below kVectorPassesFrom elements, the loop is inlined into the caller (at d = 1 a call
-//     costs more than its work), compiled like the caller;
+//     costs more than its work), compiled like the caller, and not vectorised (kSimd = false):
+//     GCC's simd loop keeps a reduction's vector on the stack, and at d = 1 its scalar remainder
+//     writes one 8-byte lane that the final 16-byte load then reads — a store the CPU cannot
+//     forward, ≈ 12 % of MidpointNewton::solve's samples (perf); the scalar loops took the
+//     d = 1 run (examples/viscoelastic_caputo.toml) from 176 to 167 ns per step, the same bits;
 //   - from kVectorPassesFrom on, the same loop runs in a kernel with an x86-64-v3 clone
 //     (internal/vectorize.hpp, GCC's target_clones).
 //
@@ -35,14 +39,20 @@ struct CorrectionPass {
   bool finite = true;  // every updated Δ_i finite
 };
 
-// The loops, written once: inlined below kVectorPassesFrom, and into the kernels' clones. (Every
-// file is compiled with -fopenmp-simd, CMakeLists.txt, so the simd pragmas act alike everywhere.)
+// The loops, written once: inlined below kVectorPassesFrom as plain loops (kSimd = false), and
+// into the kernels' clones as simd loops (kSimd = true). (Every file is compiled with
+// -fopenmp-simd, CMakeLists.txt, so the simd pragmas act alike everywhere.) The maxima and the
+// finiteness sums are exact in any order, so both forms give the same results; dot and
+// weighted_squares would sum in another order, and their callers take Eigen's sums below
+// kVectorPassesFrom.
 namespace loops {
 
-#define FRACVI_PASS [[gnu::always_inline]] inline
+#define FRACVI_PASS     \
+  template <bool kSimd> \
+  [[gnu::always_inline]] inline
 FRACVI_PASS bool add_and_check(const double* a, const double* b, double* out, Eigen::Index n) {
   double zero = 0.0;
-#pragma omp simd reduction(+ : zero)
+#pragma omp simd if (simd : kSimd) reduction(+ : zero)
   for (Eigen::Index i = 0; i < n; ++i) {
     const double value = a[i] + b[i];
     out[i] = value;
@@ -54,7 +64,7 @@ FRACVI_PASS bool add_and_check(const double* a, const double* b, double* out, Ei
 FRACVI_PASS bool diagonal_residual(const double* m, const double* increment, double s,
                                    const double* g, const double* c, double* out, Eigen::Index n) {
   double zero = 0.0;
-#pragma omp simd reduction(+ : zero)
+#pragma omp simd if (simd : kSimd) reduction(+ : zero)
   for (Eigen::Index i = 0; i < n; ++i) {
     const double value = (m[i] * increment[i] + s * g[i]) - c[i];
     out[i] = value;
@@ -66,7 +76,7 @@ FRACVI_PASS bool diagonal_residual(const double* m, const double* increment, dou
 FRACVI_PASS bool general_residual(double s, const double* g, const double* c, double* out,
                                   Eigen::Index n) {
   double zero = 0.0;
-#pragma omp simd reduction(+ : zero)
+#pragma omp simd if (simd : kSimd) reduction(+ : zero)
   for (Eigen::Index i = 0; i < n; ++i) {
     const double value = (out[i] + s * g[i]) - c[i];
     out[i] = value;
@@ -79,7 +89,7 @@ FRACVI_PASS CorrectionPass apply_correction(const double* delta, const double* a
                                             double* mid, Eigen::Index n, bool with_next) {
   double size = 0.0, scale = 0.0, zero = 0.0;
   if (with_next) {
-#pragma omp simd reduction(max : size, scale) reduction(+ : zero)
+#pragma omp simd if (simd : kSimd) reduction(max : size, scale) reduction(+ : zero)
     for (Eigen::Index i = 0; i < n; ++i) {
       const double updated = increment[i] - delta[i];
       increment[i] = updated;
@@ -89,7 +99,7 @@ FRACVI_PASS CorrectionPass apply_correction(const double* delta, const double* a
       mid[i] = a[i] + 0.5 * updated;
     }
   } else {
-#pragma omp simd reduction(max : size) reduction(+ : zero)
+#pragma omp simd if (simd : kSimd) reduction(max : size) reduction(+ : zero)
     for (Eigen::Index i = 0; i < n; ++i) {
       const double updated = increment[i] - delta[i];
       increment[i] = updated;
@@ -102,7 +112,7 @@ FRACVI_PASS CorrectionPass apply_correction(const double* delta, const double* a
 
 FRACVI_PASS bool all_finite(const double* v, Eigen::Index n) {
   double zero = 0.0;
-#pragma omp simd reduction(+ : zero)
+#pragma omp simd if (simd : kSimd) reduction(+ : zero)
   for (Eigen::Index i = 0; i < n; ++i) zero += 0.0 * v[i];
   return zero == 0.0;
 }
@@ -111,13 +121,13 @@ FRACVI_PASS double midpoint(const double* a, const double* increment, double* ou
                             bool with_scale) {
   double scale = 0.0;
   if (with_scale) {
-#pragma omp simd reduction(max : scale)
+#pragma omp simd if (simd : kSimd) reduction(max : scale)
     for (Eigen::Index i = 0; i < n; ++i) {
       out[i] = a[i] + 0.5 * increment[i];
       scale = std::max(scale, std::abs(a[i]));
     }
   } else {
-#pragma omp simd
+#pragma omp simd if (simd : kSimd)
     for (Eigen::Index i = 0; i < n; ++i) out[i] = a[i] + 0.5 * increment[i];
   }
   return scale;
@@ -125,7 +135,7 @@ FRACVI_PASS double midpoint(const double* a, const double* increment, double* ou
 
 FRACVI_PASS void start_momentum(const double* p, const double* force, double impulse, double h,
                                 double* p_plus, double* rhs, Eigen::Index n) {
-#pragma omp simd
+#pragma omp simd if (simd : kSimd)
   for (Eigen::Index i = 0; i < n; ++i) {
     const double value = p[i] - impulse * force[i];
     p_plus[i] = value;
@@ -134,13 +144,13 @@ FRACVI_PASS void start_momentum(const double* p, const double* force, double imp
 }
 
 FRACVI_PASS void scale_and_subtract(double s, const double* b, double* a, Eigen::Index n) {
-#pragma omp simd
+#pragma omp simd if (simd : kSimd)
   for (Eigen::Index i = 0; i < n; ++i) a[i] = a[i] * s - b[i];
 }
 
 FRACVI_PASS void subtract_scaled(const double* a, double s, const double* b, double* out,
                                  Eigen::Index n) {
-#pragma omp simd
+#pragma omp simd if (simd : kSimd)
   for (Eigen::Index i = 0; i < n; ++i) out[i] = a[i] - s * b[i];
 }
 
@@ -148,13 +158,13 @@ FRACVI_PASS void shifted(const double* x, const double* x0, double t, const doub
                          Eigen::Index n) {
   // One loop per case (the branches out of the loop); the roundings of x, then −x_0, then −t v_0.
   if (x0 != nullptr && v0 != nullptr) {
-#pragma omp simd
+#pragma omp simd if (simd : kSimd)
     for (Eigen::Index i = 0; i < n; ++i) out[i] = (x[i] - x0[i]) - t * v0[i];
   } else if (x0 != nullptr) {
-#pragma omp simd
+#pragma omp simd if (simd : kSimd)
     for (Eigen::Index i = 0; i < n; ++i) out[i] = x[i] - x0[i];
   } else if (v0 != nullptr) {
-#pragma omp simd
+#pragma omp simd if (simd : kSimd)
     for (Eigen::Index i = 0; i < n; ++i) out[i] = x[i] - t * v0[i];
   } else {
     for (Eigen::Index i = 0; i < n; ++i) out[i] = x[i];  // no call inside a clone (above)
@@ -163,14 +173,14 @@ FRACVI_PASS void shifted(const double* x, const double* x0, double t, const doub
 
 FRACVI_PASS double dot(const double* a, const double* b, Eigen::Index n) {
   double sum = 0.0;
-#pragma omp simd reduction(+ : sum)
+#pragma omp simd if (simd : kSimd) reduction(+ : sum)
   for (Eigen::Index i = 0; i < n; ++i) sum += a[i] * b[i];
   return sum;
 }
 
 FRACVI_PASS double weighted_squares(const double* w, const double* x, Eigen::Index n) {
   double sum = 0.0;
-#pragma omp simd reduction(+ : sum)
+#pragma omp simd if (simd : kSimd) reduction(+ : sum)
   for (Eigen::Index i = 0; i < n; ++i) {
     const double y = w[i] * x[i];
     sum += y * y;
@@ -206,7 +216,7 @@ double weighted_squares(const double* w, const double* x, Eigen::Index n);
 // The passes (n elements each; the pointers may not overlap except where an argument is read and
 // written in place).
 #define FRACVI_DISPATCH(name, ...) \
-  (n < kVectorPassesFrom ? loops::name(__VA_ARGS__) : kernels::name(__VA_ARGS__))
+  (n < kVectorPassesFrom ? loops::name<false>(__VA_ARGS__) : kernels::name(__VA_ARGS__))
 
 /// out_i = a_i + b_i; returns whether every out_i is finite.
 inline bool add_and_check(const double* a, const double* b, double* out, Eigen::Index n) {
