@@ -16,6 +16,7 @@
 
 #include "fracvi/core/error.hpp"
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/internal/background_thread.hpp"
 
 namespace fracvi {
 namespace internal {
@@ -327,6 +328,7 @@ ConcurrentErrorEstimate::ConcurrentErrorEstimate(const InitialValueProblem& prob
   // std::async(launch::async) runs on its own thread at once; the future's exception (a
   // companion that throws, as estimate_error would have thrown) is rethrown by finish().
   runs_ = std::async(std::launch::async, [this] {
+    internal::lower_this_thread_priority();  // the main run keeps its core (background_thread.hpp)
     return std::make_shared<const CompanionRuns>(
         run_companions(problem_, method_, options_, stored_, cancel_));
   });

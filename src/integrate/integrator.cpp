@@ -22,6 +22,7 @@
 #include "fracvi/core/error.hpp"
 #include "fracvi/core/memory.hpp"
 #include "fracvi/integrate/dense_output.hpp"
+#include "fracvi/internal/background_thread.hpp"
 #include "fracvi/schemes/history_budget.hpp"
 #include "fracvi/solve/vector_passes.hpp"
 
@@ -193,6 +194,7 @@ class AlongsideMirror {
   };
 
   void body(const Stepper& stepper) {
+    internal::lower_this_thread_priority();  // the run keeps its core (background_thread.hpp)
     {
       std::unique_lock<std::mutex> lock(mutex_);
       changed_.wait(lock, [this] { return gate_ != Gate::kClosed; });

@@ -11,6 +11,8 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -19,6 +21,7 @@
 #include "../support/test_problems.hpp"
 #include "fracvi/analysis/error_estimate.hpp"
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/internal/background_thread.hpp"
 #include "fracvi/model/expression_potential.hpp"
 #include "fracvi/schemes/registry.hpp"
 #include "integrate_test_support.hpp"
@@ -290,6 +293,42 @@ TEST(ErrorEstimate, ConcurrentCompanionsGiveTheSequentialEstimate) {
 
   options.threads = 1;  // one thread means one thread
   EXPECT_FALSE(ConcurrentErrorEstimate::applies(problem, options));
+}
+
+// The companions run kBackgroundNice below the main run's priority (background_thread.hpp), so
+// that the main run keeps its core; the calling thread keeps its priority. The interrupt hook is
+// asked by the companions before each of their steps, on their thread.
+TEST(ErrorEstimate, ConcurrentCompanionsRunBelowTheRunsPriority) {
+  if (std::thread::hardware_concurrency() < 2)
+    GTEST_SKIP() << "one hardware thread: no companion thread";
+  InitialLayerCase c;
+  IntegratorOptions options = c.options;
+  ASSERT_TRUE(ConcurrentErrorEstimate::applies(c.problem, options));
+  const std::optional<int> before = internal::this_thread_nice();
+  ASSERT_TRUE(before.has_value());
+  const std::thread::id caller = std::this_thread::get_id();
+  std::mutex mutex;
+  std::optional<int> companion_nice;
+  options.interrupt = [&] {
+    if (std::this_thread::get_id() != caller) {
+      const std::lock_guard<std::mutex> lock(mutex);
+      companion_nice = internal::this_thread_nice();
+    }
+    return false;
+  };
+  Solution sol = integrate(c.problem, c.method, options);
+  ASSERT_TRUE(sol.ok()) << sol.message;
+  {
+    ConcurrentErrorEstimate estimate(c.problem, c.method, options, sol.step);
+    estimate.finish(sol);
+  }
+  EXPECT_TRUE(sol.error_estimate.concurrent);
+  ASSERT_TRUE(companion_nice.has_value()) << "the hook was not asked on the companions' thread";
+  EXPECT_EQ(*companion_nice, std::min(*before + internal::kBackgroundNice, 19));
+  if (*before < 19) {
+    EXPECT_GT(*companion_nice, *before);
+  }
+  EXPECT_EQ(internal::this_thread_nice(), before);
 }
 
 }  // namespace

@@ -9,9 +9,12 @@
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
+#include <mutex>
+#include <optional>
 #include <thread>
 
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/internal/background_thread.hpp"
 #include "fracvi/schemes/registry.hpp"
 #include "integrate_test_support.hpp"
 
@@ -221,6 +224,68 @@ TEST(MirrorAlongsideControl, InterruptDuringTheWaitKeepsTheTrajectory) {
   // ≥ 2 kN gradients at 0.5 ms each on the mirror thread: ≥ 0.4 s uninterrupted.
   std::printf("  interrupted after %.3f s\n", seconds);
   EXPECT_LT(seconds, 0.3);
+}
+
+// A potential that records the largest nice value of the threads other than its owner's that ask
+// for its gradient.
+class NiceElsewhere final : public Potential {
+ public:
+  explicit NiceElsewhere(std::shared_ptr<const Potential> inner)
+      : inner_(std::move(inner)), owner_(std::this_thread::get_id()) {}
+  [[nodiscard]] Eigen::Index dimension() const override { return inner_->dimension(); }
+  [[nodiscard]] bool has_constant_hessian() const override {
+    return inner_->has_constant_hessian();
+  }
+  [[nodiscard]] bool is_time_dependent() const override { return inner_->is_time_dependent(); }
+  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const override {
+    return inner_->value(x, t);
+  }
+  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+                Eigen::Ref<Eigen::VectorXd> g) const override {
+    if (std::this_thread::get_id() != owner_) {
+      const std::optional<int> nice = internal::this_thread_nice();
+      const std::lock_guard<std::mutex> lock(mutex_);
+      if (nice && (!elsewhere_ || *nice > *elsewhere_)) elsewhere_ = nice;
+    }
+    inner_->gradient(x, t, g);
+  }
+  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+               Eigen::Ref<Eigen::MatrixXd> h) const override {
+    inner_->hessian(x, t, h);
+  }
+  [[nodiscard]] std::optional<int> elsewhere() const {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return elsewhere_;
+  }
+
+ private:
+  std::shared_ptr<const Potential> inner_;
+  std::thread::id owner_;
+  mutable std::mutex mutex_;
+  mutable std::optional<int> elsewhere_;
+};
+
+// The mirror run alongside runs kBackgroundNice below the run's priority (background_thread.hpp),
+// so that the run keeps its core; the run's own thread keeps its priority.
+TEST(MirrorAlongsideControl, RunsBelowTheRunsPriority) {
+  if (std::thread::hardware_concurrency() < 2)
+    GTEST_SKIP() << "one hardware thread: no mirror thread";
+  const std::optional<int> before = internal::this_thread_nice();
+  ASSERT_TRUE(before.has_value());
+  InitialValueProblem p = problem(0.75, Convention::kCaputo, Eigen::VectorXd{{1.2, -0.4}});
+  auto recording = std::make_shared<const NiceElsewhere>(p.model.potential);
+  p.model.potential = recording;
+  IntegratorOptions o = tight();
+  o.mirror_alongside = true;
+  const Solution sol = integrate(p, fvi_gl(), o);
+  ASSERT_TRUE(sol.ok()) << sol.message;
+  ASSERT_TRUE(sol.mirror_alongside);
+  ASSERT_TRUE(recording->elsewhere().has_value()) << "no gradient on the mirror thread";
+  EXPECT_EQ(*recording->elsewhere(), std::min(*before + internal::kBackgroundNice, 19));
+  if (*before < 19) {
+    EXPECT_GT(*recording->elsewhere(), *before);
+  }
+  EXPECT_EQ(internal::this_thread_nice(), before);
 }
 
 }  // namespace
