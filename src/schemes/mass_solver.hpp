@@ -70,9 +70,10 @@ class MassSolver {
   /// out = M⁻¹ R' s, given force = R' s (the step forms it anyway): M⁻¹ applied to it, except on
   /// the dense path, which multiplies s by its M⁻¹R'. (On the other paths this is the quotient or
   /// solve of R' s, the numbers of forming R' s again here, without the second product.)
-  void inverse_damping(const Eigen::Ref<const Eigen::VectorXd>& s,
-                       const Eigen::Ref<const Eigen::VectorXd>& force,
-                       Eigen::Ref<Eigen::VectorXd> out) const {
+  /// VectorXd, not Eigen::Ref: the step's members, and a by-value Ref costs a store-forwarding
+  /// stall at d = 1 (midpoint_newton.hpp's solve()).
+  void inverse_damping(const Eigen::VectorXd& s, const Eigen::VectorXd& force,
+                       Eigen::VectorXd& out) const {
     if (dense_) {
       minv_damping_.multiply(s, out);
     } else {
