@@ -46,6 +46,14 @@ constexpr double kKeptFactorContraction = 0.25;
 // 10^5 steps.
 constexpr double kCarriedFactorMargin = 0.5;
 constexpr std::size_t kMaxCarryBackoff = 64;
+// The carried J's contraction θ is observed at a call's second correction; every call that starts
+// from it without observing it raises the estimate to θ̂^0.8 (from ε at least), so that a stale
+// estimate grows towards 1 and a second correction measures θ again within a few calls (the
+// η_old^0.8 of Hairer & Wanner, Solving ODEs II, §IV.8, and RADAU5's FACCON). Measured on the
+// β-FPUT chain of bench/RESULTS.md (d = 1000, h = 0.01): θ ≈ 6e-11 against ‖δ_1‖ ≈ 1.3e-10 and a
+// round-off level of ≈ 4e-16, so about three calls in four stop at their first correction (1.26
+// corrections a step instead of 2.00).
+constexpr double kContractionAging = 0.8;
 
 }  // namespace
 
@@ -165,6 +173,7 @@ void MidpointNewton::visit_state(StateArchive& archive, std::string_view prefix)
   archive.number(name + ".factored_time", factored_time_);
   archive.count(name + ".carry_wait", carry_wait_);
   archive.count(name + ".carry_backoff", carry_backoff_);
+  archive.number(name + ".kept_contraction", kept_contraction_);
   std::size_t factorizations = factorizations_;
   archive.count(name + ".factorizations", factorizations);
   // Only the structured backends carry J between calls (a linear J is the constructor's).
@@ -249,11 +258,20 @@ NewtonReport MidpointNewton::solve(const Eigen::VectorXd& a, double tau, const E
   // differs from this step's by O(h), so the contraction rate is O(h³ ∇³U) — for a smooth motion
   // two corrections, as with a fresh J, and no factorisation (measured on the β-FPUT chain,
   // bench/RESULTS.md) — as long as the calls converge that fast (kCarriedFactorMargin).
-  // A J from an earlier step has no observed contraction at the first correction
-  // (θ = ∞ there), so that correction alone is never accepted.
+  // A J from an earlier step has no observed contraction at the first correction (θ = ∞ there),
+  // so that correction alone meets the tolerance only through the estimate θ̂ carried from the
+  // calls before, and only when it predicts the next correction below round-off (below).
   const bool keep_factor = !linear_ && backend_ != LinearSolver::kDense;
   const bool kept_from_earlier_call = keep_factor && carry_;
   carry_ = false;  // until this call converges (update_carry)
+  // The carried J's contraction as last observed, aged by this call (kContractionAging): the
+  // estimate that lets its first correction stop the iteration (below).
+  double estimated_contraction = std::numeric_limits<double>::infinity();
+  if (kept_from_earlier_call && std::isfinite(kept_contraction_)) {
+    estimated_contraction = std::pow(
+        std::max(kept_contraction_, std::numeric_limits<double>::epsilon()), kContractionAging);
+    kept_contraction_ = estimated_contraction;
+  }
   bool factor_now = !kept_from_earlier_call;
   double previous_correction = std::numeric_limits<double>::infinity();
   // The first iterate's midpoint (later ones come out of the correction pass) and, in the same
@@ -283,6 +301,8 @@ NewtonReport MidpointNewton::solve(const Eigen::VectorXd& a, double tau, const E
       report.status = Status::kNonFinite;
       return report;
     }
+    const bool refactored = !linear_ && factor_now;
+    if (refactored) kept_contraction_ = std::numeric_limits<double>::infinity();  // a new J
     if (linear_ ? !constant_factor_ok_ : factor_now && !factor_jacobian(tau)) {
       report.status = Status::kNewtonFailure;
       report.singular = true;
@@ -316,16 +336,31 @@ NewtonReport MidpointNewton::solve(const Eigen::VectorXd& a, double tau, const E
     if (linear_) return report;
     const double contraction = report.correction / previous_correction;  // 0 at it = 1
     factor_now = !keep_factor || contraction > kKeptFactorContraction;
+    // Two corrections with the same J carried from an earlier call: its contraction, observed.
+    // (Not that of a J formed in this call: formed at this step's first iterate, it contracts far
+    // better than it will once carried a step on — measured 50× the round-off left by a first
+    // correction that such an estimate let stop, tests/integrate/newton_stopping_test.cpp.)
+    if (kept_from_earlier_call && it >= 2 && !refactored) kept_contraction_ = contraction;
     const double observed_contraction =
         it == 1 && kept_from_earlier_call ? std::numeric_limits<double>::infinity() : contraction;
     previous_correction = report.correction;
     const double scale = std::max(applied.scale, a_norm);
     report.tolerance = options_.absolute_tolerance + options_.relative_tolerance * scale;
     const double roundoff = 4.0 * std::numeric_limits<double>::epsilon() * scale;
-    if (newton_converged(report.correction, report.tolerance, observed_contraction, roundoff)) {
+    // The first correction with a carried J stops the iteration when the next one is predicted
+    // below round-off: θ̂/(1 − θ̂)·‖δ_1‖ ≤ roundoff, θ̂ the aged estimate (Hairer & Wanner II,
+    // §IV.8: the contraction of the previous step stands for this one's). The iterate is then the
+    // solution to round-off, as after a second correction, which would change Δ by less than its
+    // last bits.
+    const bool next_below_roundoff =
+        it == 1 && estimated_contraction < 0.5 &&
+        estimated_contraction / (1.0 - estimated_contraction) * report.correction <= roundoff;
+    if (next_below_roundoff ||
+        newton_converged(report.correction, report.tolerance, observed_contraction, roundoff)) {
       if (keep_factor) {
         update_carry(kept_from_earlier_call,
-                     it <= 2 && report.correction <= kCarriedFactorMargin * report.tolerance);
+                     next_below_roundoff ||
+                         (it <= 2 && report.correction <= kCarriedFactorMargin * report.tolerance));
       }
       return report;
     }

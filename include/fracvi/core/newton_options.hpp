@@ -9,7 +9,9 @@ struct NewtonOptions {
   /// δ the last Newton correction (already applied), and, where the corrections contract slowly,
   /// the error they leave is below that bound too (newton_converged()). Quadratic convergence
   /// makes the accepted iterate far more accurate than the tolerance; tolerances near machine
-  /// epsilon may fail to be reached because of round-off in the residual.
+  /// epsilon may fail to be reached because of round-off in the residual. (The time steppers'
+  /// simplified Newton with a matrix carried from the previous step also stops after one
+  /// correction when the next is predicted below round-off: MidpointNewton::solve.)
   double relative_tolerance = 1e-12;
   double absolute_tolerance = 0.0;
   /// Per step (per solve for the boundary value problem); ≥ 1. One default for the C++ API,

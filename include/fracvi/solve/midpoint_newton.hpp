@@ -29,6 +29,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <limits>
 #include <memory>
 #include <string_view>
 #include <utility>
@@ -76,7 +77,9 @@ class MidpointNewton {
   /// null (f ≡ 0). Convergence: ‖δ‖_∞ ≤ atol + rtol · max(‖a + Δ‖_∞, ‖a‖_∞), δ the last
   /// correction (already applied), and newton_converged()'s bound on a slow contraction.
   /// On the banded and sparse backends with a nonlinear U, J is kept from call to call (from
-  /// step to step) while the corrections contract fast: see solve()'s comment.
+  /// step to step) while the corrections contract fast: see solve()'s comment. With such a
+  /// carried J, the first correction also stops the iteration when the contraction estimated from
+  /// the calls before predicts the next correction below round-off (4ε max(‖a + Δ‖_∞, ‖a‖_∞)).
   /// The vectors are Eigen::VectorXd, not Eigen::Ref as elsewhere: every caller holds VectorXd
   /// members, and GCC built each Ref parameter with Eigen's out-of-line constructor (two 8-byte
   /// stores) and then copied it with one 16-byte load, a store the CPU cannot forward — 74 % of
@@ -108,8 +111,9 @@ class MidpointNewton {
 
   /// The kept Jacobian's point and whether the next call starts from it (a checkpoint's part of
   /// the solver: it changes the iterates, hence the last bits of a nonlinear step). Records
-  /// `<prefix>.carry`, `.factored_mid`, `.factored_time`, `.carry_wait`, `.carry_backoff` and
-  /// `.factorizations` (the count so far);
+  /// `<prefix>.carry`, `.factored_mid`, `.factored_time`, `.carry_wait`, `.carry_backoff`,
+  /// `.kept_contraction` (the kept J's estimated contraction) and `.factorizations` (the count so
+  /// far);
   /// loading forms and factors J at the recorded point again when it is carried.
   void visit_state(StateArchive& archive, std::string_view prefix);
 
@@ -150,6 +154,9 @@ class MidpointNewton {
   Eigen::VectorXd factored_mid_;
   double factored_time_ = 0.0;
   std::size_t carry_wait_ = 0, carry_backoff_ = 0;
+  // The kept J's contraction θ, last observed (two corrections with it in one call) and aged at
+  // every call since (solve()); +∞ until observed, and again after every factorisation.
+  double kept_contraction_ = std::numeric_limits<double>::infinity();
   std::size_t factorizations_ = 0;
   // The state force at the current iterate and its Jacobians (dense path only).
   Eigen::VectorXd velocity_, force_value_;
