@@ -11,6 +11,7 @@
 #include <thread>
 #include <utility>
 
+#include "fracvi/internal/cpu_placement.hpp"
 #include "fracvi/internal/parallel.hpp"
 #include "fracvi/internal/vectorize.hpp"
 
@@ -329,6 +330,7 @@ class FastHistory::AheadThread {
   void post(Eigen::Index leaving_slot, Eigen::Index first) {
     slot_ = leaving_slot;
     first_ = first;
+    caller_cpu_ = internal::current_cpu();
     job_.store(kWork, std::memory_order_release);
     job_.notify_one();
   }
@@ -367,14 +369,21 @@ class FastHistory::AheadThread {
   void serve() {
     for (;;) {
       if (await_other_than(kIdle) == kStop) return;
+      const int caller_cpu = caller_cpu_;  // posted with the job (the next post may change it)
       history_.run_ahead(slot_, first_);
+      const bool shared = movable_ && caller_cpu >= 0 && internal::current_cpu() == caller_cpu;
       job_.store(kIdle, std::memory_order_release);
       job_.notify_one();
+      // On the caller's CPU, the two threads take turns instead of overlapping: move to another
+      // (cpu_placement.hpp). Once that is refused (one allowed CPU), never ask again.
+      if (shared) movable_ = internal::move_off_cpu(caller_cpu);
     }
   }
 
   FastHistory& history_;
   Eigen::Index slot_ = 0, first_ = 0;
+  int caller_cpu_ = -1;  // where the caller posted the job from
+  bool movable_ = true;  // the worker's thread only
   mutable std::atomic<int> job_{kIdle};
   std::thread worker_;  // last: it starts serving once the members above exist
 };

@@ -12,10 +12,12 @@
 #include <chrono>
 #include <cstddef>
 #include <random>
+#include <thread>
 #include <vector>
 
 #include "fracvi/core/state_archive.hpp"
 #include "fracvi/fractional/runge_kutta_cq.hpp"
+#include "fracvi/internal/cpu_placement.hpp"
 #include "fracvi/internal/team_chooser.hpp"
 #include "fracvi/memory/block_history.hpp"
 #include "fracvi/memory/fast_history.hpp"
@@ -239,6 +241,42 @@ TEST(TeamChooser, FastBlockHistorySumsDoNotDependOnTheChoice) {
   EXPECT_TRUE(bitwise_equal(sums[0], sums[1])) << "1 thread against a team of 2";
   EXPECT_TRUE(bitwise_equal(sums[0], sums[2])) << "1 thread against the measured choice";
 }
+
+#if defined(__linux__)
+// The run-ahead thread's way off the caller's CPU (internal/cpu_placement.hpp): a thread moved off
+// the CPU it runs on is on another one when the call returns, and its allowed set is the one it
+// had (nothing pinned). With one allowed CPU (or one hardware thread) the call refuses.
+TEST(CpuPlacement, MovesTheThreadOffItsCpuAndKeepsItsAffinity) {
+  std::thread probe([] {
+    cpu_set_t before;
+    CPU_ZERO(&before);
+    ASSERT_EQ(pthread_getaffinity_np(pthread_self(), sizeof before, &before), 0);
+    const int cpu = internal::current_cpu();
+    ASSERT_GE(cpu, 0);
+    const bool moved = internal::move_off_cpu(cpu);
+    EXPECT_EQ(moved, CPU_COUNT(&before) >= 2);
+    if (moved) {
+      EXPECT_NE(internal::current_cpu(), cpu);
+    }
+    cpu_set_t after;
+    CPU_ZERO(&after);
+    ASSERT_EQ(pthread_getaffinity_np(pthread_self(), sizeof after, &after), 0);
+    EXPECT_TRUE(CPU_EQUAL(&before, &after));
+    // Pinned to one CPU: nowhere to go, and the pin stays.
+    cpu_set_t one;
+    CPU_ZERO(&one);
+    CPU_SET(cpu, &one);
+    ASSERT_EQ(pthread_setaffinity_np(pthread_self(), sizeof one, &one), 0);
+    EXPECT_FALSE(internal::move_off_cpu(cpu));
+    EXPECT_EQ(internal::current_cpu(), cpu);
+    cpu_set_t pinned;
+    CPU_ZERO(&pinned);
+    ASSERT_EQ(pthread_getaffinity_np(pthread_self(), sizeof pinned, &pinned), 0);
+    EXPECT_TRUE(CPU_EQUAL(&one, &pinned));
+  });
+  probe.join();
+}
+#endif
 
 }  // namespace
 }  // namespace fracvi
