@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -166,12 +167,14 @@ INSTANTIATE_TEST_SUITE_P(Schemes, MirrorAlongside,
                                            AlongsideCase{"fvi-lobatto3", 7, false},
                                            AlongsideCase{"fvi-lobatto3", 3, true}));
 
-// A potential that is slow on every thread but the one that built it: the mirror run alongside
-// then ends long after the run.
-class SlowElsewhere final : public Potential {
+// A potential that forwards to `inner` and, for every gradient asked on a thread other than the
+// one that built it, first calls `elsewhere` (the mirror run alongside asks on its own thread).
+class OnOtherThreads final : public Potential {
  public:
-  explicit SlowElsewhere(std::shared_ptr<const Potential> inner)
-      : inner_(std::move(inner)), owner_(std::this_thread::get_id()) {}
+  OnOtherThreads(std::shared_ptr<const Potential> inner, std::function<void()> elsewhere)
+      : inner_(std::move(inner)),
+        elsewhere_(std::move(elsewhere)),
+        owner_(std::this_thread::get_id()) {}
   [[nodiscard]] Eigen::Index dimension() const override { return inner_->dimension(); }
   [[nodiscard]] bool has_constant_hessian() const override {
     return inner_->has_constant_hessian();
@@ -182,9 +185,7 @@ class SlowElsewhere final : public Potential {
   }
   void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
                 Eigen::Ref<Eigen::VectorXd> g) const override {
-    if (std::this_thread::get_id() != owner_) {
-      std::this_thread::sleep_for(std::chrono::microseconds(500));
-    }
+    if (std::this_thread::get_id() != owner_) elsewhere_();
     inner_->gradient(x, t, g);
   }
   void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
@@ -194,6 +195,7 @@ class SlowElsewhere final : public Potential {
 
  private:
   std::shared_ptr<const Potential> inner_;
+  std::function<void()> elsewhere_;
   std::thread::id owner_;
 };
 
@@ -204,7 +206,9 @@ TEST(MirrorAlongsideControl, InterruptDuringTheWaitKeepsTheTrajectory) {
   // One hardware thread: the mirror run goes after the run, and the test checks that path.
   const bool two_threads = std::thread::hardware_concurrency() >= 2;
   InitialValueProblem p = problem(0.75, Convention::kCaputo, Eigen::VectorXd{{1.2, -0.4}});
-  p.model.potential = std::make_shared<const SlowElsewhere>(p.model.potential);
+  // Slow on the mirror thread: the mirror run alongside ends long after the run.
+  p.model.potential = std::make_shared<const OnOtherThreads>(
+      p.model.potential, [] { std::this_thread::sleep_for(std::chrono::microseconds(500)); });
   IntegratorOptions o = tight();
   o.mirror_alongside = true;
   // The run asks before each of its kN steps; from then on (the wait) the answer is yes.
@@ -226,45 +230,6 @@ TEST(MirrorAlongsideControl, InterruptDuringTheWaitKeepsTheTrajectory) {
   EXPECT_LT(seconds, 0.3);
 }
 
-// A potential that records the largest nice value of the threads other than its owner's that ask
-// for its gradient.
-class NiceElsewhere final : public Potential {
- public:
-  explicit NiceElsewhere(std::shared_ptr<const Potential> inner)
-      : inner_(std::move(inner)), owner_(std::this_thread::get_id()) {}
-  [[nodiscard]] Eigen::Index dimension() const override { return inner_->dimension(); }
-  [[nodiscard]] bool has_constant_hessian() const override {
-    return inner_->has_constant_hessian();
-  }
-  [[nodiscard]] bool is_time_dependent() const override { return inner_->is_time_dependent(); }
-  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const override {
-    return inner_->value(x, t);
-  }
-  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
-                Eigen::Ref<Eigen::VectorXd> g) const override {
-    if (std::this_thread::get_id() != owner_) {
-      const std::optional<int> nice = internal::this_thread_nice();
-      const std::lock_guard<std::mutex> lock(mutex_);
-      if (nice && (!elsewhere_ || *nice > *elsewhere_)) elsewhere_ = nice;
-    }
-    inner_->gradient(x, t, g);
-  }
-  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
-               Eigen::Ref<Eigen::MatrixXd> h) const override {
-    inner_->hessian(x, t, h);
-  }
-  [[nodiscard]] std::optional<int> elsewhere() const {
-    const std::lock_guard<std::mutex> lock(mutex_);
-    return elsewhere_;
-  }
-
- private:
-  std::shared_ptr<const Potential> inner_;
-  std::thread::id owner_;
-  mutable std::mutex mutex_;
-  mutable std::optional<int> elsewhere_;
-};
-
 // The mirror run alongside runs kBackgroundNice below the run's priority (background_thread.hpp),
 // so that the run keeps its core; the run's own thread keeps its priority.
 TEST(MirrorAlongsideControl, RunsBelowTheRunsPriority) {
@@ -273,17 +238,23 @@ TEST(MirrorAlongsideControl, RunsBelowTheRunsPriority) {
   const std::optional<int> before = internal::this_thread_nice();
   ASSERT_TRUE(before.has_value());
   InitialValueProblem p = problem(0.75, Convention::kCaputo, Eigen::VectorXd{{1.2, -0.4}});
-  auto recording = std::make_shared<const NiceElsewhere>(p.model.potential);
-  p.model.potential = recording;
+  // The largest nice value of the threads other than this one that ask for a gradient.
+  std::mutex mutex;
+  std::optional<int> elsewhere;
+  p.model.potential = std::make_shared<const OnOtherThreads>(p.model.potential, [&] {
+    const std::optional<int> nice = internal::this_thread_nice();
+    const std::lock_guard<std::mutex> lock(mutex);
+    if (nice && (!elsewhere || *nice > *elsewhere)) elsewhere = nice;
+  });
   IntegratorOptions o = tight();
   o.mirror_alongside = true;
   const Solution sol = integrate(p, fvi_gl(), o);
   ASSERT_TRUE(sol.ok()) << sol.message;
   ASSERT_TRUE(sol.mirror_alongside);
-  ASSERT_TRUE(recording->elsewhere().has_value()) << "no gradient on the mirror thread";
-  EXPECT_EQ(*recording->elsewhere(), std::min(*before + internal::kBackgroundNice, 19));
+  ASSERT_TRUE(elsewhere.has_value()) << "no gradient on the mirror thread";
+  EXPECT_EQ(*elsewhere, std::min(*before + internal::kBackgroundNice, 19));
   if (*before < 19) {
-    EXPECT_GT(*recording->elsewhere(), *before);
+    EXPECT_GT(*elsewhere, *before);
   }
   EXPECT_EQ(internal::this_thread_nice(), before);
 }
