@@ -6,10 +6,10 @@
 // (TeamChooser) — sched_getcpu() equal on both threads for 256 steps (≈ 5 ms) while the other
 // vCPU stayed idle; the β-FPUT chain (d = 1000) then took 14–21 µs per step on the "team"
 // against 8.5–10 µs with the threads on two CPUs and 11–12 µs on one thread, so the choice kept
-// one thread for the next 0.5 s (2 runs of 8; none of 16 with the move; bench/RESULTS.md). A
-// thread cannot ask the scheduler to move
-// it, but it can change its own affinity: without the CPU it shares, the kernel migrates it at
-// once; the allowed set is then restored, and the scheduler leaves a running thread where it is.
+// one thread for the next 0.5 s (2 runs of 8; none of 16 with the move; bench/RESULTS.md).
+// A thread cannot ask the scheduler to move it, but it can change its own affinity: without the
+// CPU it shares, the kernel migrates it at once; the allowed set is then restored, and the
+// scheduler leaves a running thread where it is.
 // Nothing is pinned: the user's affinity (taskset, cgroups) is kept, and the kernel stays free to
 // move either thread later.
 #pragma once
