@@ -12,6 +12,7 @@
 #include <span>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "fracvi/core/error.hpp"
@@ -75,19 +76,32 @@ std::optional<RowMatrixXd> companion(const InitialValueProblem& problem, const M
   p.steps = steps;
   const IntegratorOptions o = companion_options(options, steps, cancel);
   const std::size_t n = problem.steps;
-  // Companion step j ↔ main step j · n / steps; main step k ↔ stored row (k / save_every, or
-  // the last row for k = n).
-  std::vector<Eigen::Index> row_of(steps + 1, -1);
+  // Companion step j ↔ main step j · n / steps: the (j, stored row) pairs of the stored nodes on
+  // the companion's grid, in the order of j, the last row of a step repeated in `stored` kept.
+  // One pair per stored row, not a table over all `steps` (that was 8 bytes per companion step:
+  // 40 MB for the N/2 run at N = 10^7, most of a d = 1 run's peak memory).
+  std::vector<std::pair<std::size_t, Eigen::Index>> rows;
+  rows.reserve(stored.size());
   for (std::size_t i = 0; i < stored.size(); ++i) {
     const std::size_t k = stored[i];
-    if ((k * steps) % n == 0) row_of[k * steps / n] = static_cast<Eigen::Index>(i);
+    if ((k * steps) % n == 0) rows.emplace_back(k * steps / n, static_cast<Eigen::Index>(i));
   }
+  std::stable_sort(rows.begin(), rows.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  const auto last_of_each = [](const auto& a, const auto& b) { return a.first == b.first; };
+  std::reverse(rows.begin(), rows.end());  // unique keeps the first of a run: the last row
+  rows.erase(std::unique(rows.begin(), rows.end(), last_of_each), rows.end());
+  std::reverse(rows.begin(), rows.end());
   RowMatrixXd x = RowMatrixXd::Constant(static_cast<Eigen::Index>(stored.size()),
                                         problem.model.dimension(), kNaN);
   try {
     Integrator integrator(std::move(p), method, o);
+    std::size_t next = 0;  // the first pair not yet reached (the steps come in order)
     const Status status = integrator.run([&](const StepView& view) {
-      if (const Eigen::Index row = row_of[view.k]; row >= 0) x.row(row) = view.x.transpose();
+      while (next < rows.size() && rows[next].first < view.k) ++next;
+      if (next < rows.size() && rows[next].first == view.k) {
+        x.row(rows[next].second) = view.x.transpose();
+      }
     });
     if (status != Status::kSuccess) {
       why = "the companion run with " + std::to_string(steps) + " steps ended " +
