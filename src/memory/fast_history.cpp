@@ -28,11 +28,15 @@ struct FastHistoryBlock {
   double* state;
   double* tail;
   double* sum;
-  const double* leaving;   // x̃_{k−n0}: ring column `slot`, overwritten by x̃_k below
-  const double* entering;  // x̃_k
-  double* slot;            // its two ring columns
-  double* slot_copy;
+  const double* leaving;       // x̃_{k−n0}: ring column `slot`, overwritten by x̃_k below
+  const double* entering;      // x̃_k
+  double* slot;                // its two ring columns
+  double* slot_copy;           // null: the run-ahead thread writes the copy (FastHistory::push)
   const double* window_first;  // ring column of x̃_{k−n0+1}; the window's columns follow it
+  // The window's last group's first three values x̃_{k−3} … x̃_{k−1} (when the group has four),
+  // in the ring's first half: the columns the caller wrote, still in its cache, where the
+  // window's own columns may be the copies that the second thread wrote (FastHistory::push).
+  const double* newest_older[3];
   const double* decay;
   const double* weights;
   const double* head_reversed;
@@ -153,16 +157,20 @@ void newest_block(const internal::FastHistoryBlock& blk) {
   {
     double* __restrict slot = blk.slot;
     double* __restrict slot_copy = blk.slot_copy;
-    for (Eigen::Index i = 0; i < n; ++i) slot[i] = slot_copy[i] = x[i];
+    if (slot_copy != nullptr) {
+      for (Eigen::Index i = 0; i < n; ++i) slot[i] = slot_copy[i] = x[i];
+    } else {
+      for (Eigen::Index i = 0; i < n; ++i) slot[i] = x[i];
+    }
   }
   double* __restrict sum = blk.sum;
   const double* __restrict partial = blk.tail;
-  const Eigen::Index c = newest_start(blk.window), ld = blk.ring_stride;
+  const Eigen::Index c = newest_start(blk.window);
   const double* head = blk.head_reversed;
   if (blk.window - c == 4) {
-    const double* __restrict c0 = blk.window_first + c * ld;
-    const double* __restrict c1 = blk.window_first + (c + 1) * ld;
-    const double* __restrict c2 = blk.window_first + (c + 2) * ld;
+    const double* __restrict c0 = blk.newest_older[0];
+    const double* __restrict c1 = blk.newest_older[1];
+    const double* __restrict c2 = blk.newest_older[2];
     const double h0 = head[c], h1 = head[c + 1], h2 = head[c + 2], h3 = head[c + 3];
     FRACVI_INDEPENDENT_ITERATIONS
     for (Eigen::Index i = 0; i < n; ++i)
@@ -327,9 +335,10 @@ class FastHistory::AheadThread {
 
   /// Starts the next push's recursions (x̃ from ring column `leaving_slot`) and older window (from
   /// column `first`).
-  void post(Eigen::Index leaving_slot, Eigen::Index first) {
+  void post(Eigen::Index leaving_slot, Eigen::Index first, Eigen::Index copy_slot) {
     slot_ = leaving_slot;
     first_ = first;
+    copy_slot_ = copy_slot;
     caller_cpu_ = internal::current_cpu();
     job_.store(kWork, std::memory_order_release);
     job_.notify_one();
@@ -370,7 +379,7 @@ class FastHistory::AheadThread {
     for (;;) {
       if (await_other_than(kIdle) == kStop) return;
       const int caller_cpu = caller_cpu_;  // posted with the job (the next post may change it)
-      history_.run_ahead(slot_, first_);
+      history_.run_ahead(slot_, first_, copy_slot_);
       const bool shared = movable_ && caller_cpu >= 0 && internal::current_cpu() == caller_cpu;
       job_.store(kIdle, std::memory_order_release);
       job_.notify_one();
@@ -381,7 +390,7 @@ class FastHistory::AheadThread {
   }
 
   FastHistory& history_;
-  Eigen::Index slot_ = 0, first_ = 0;
+  Eigen::Index slot_ = 0, first_ = 0, copy_slot_ = 0;
   int caller_cpu_ = -1;  // where the caller posted the job from
   bool movable_ = true;  // the worker's thread only
   mutable std::atomic<int> job_{kIdle};
@@ -430,7 +439,9 @@ constexpr Eigen::Index kBlock = 256;
 // recursions alone), x̃_{k−n0} in ring column `slot`, the window starting at column `first`.
 internal::FastHistoryBlock FastHistory::block(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
                                               Eigen::Index slot, Eigen::Index first,
-                                              const double* entering) {
+                                              const double* entering, bool copy) {
+  const Eigen::Index newest = first + newest_start(window_);
+  auto original = [&](Eigen::Index c) { return ring_.col(c % window_).data() + b; };
   return {n,
           terms,
           state_.rows(),
@@ -442,18 +453,22 @@ internal::FastHistoryBlock FastHistory::block(Eigen::Index b, Eigen::Index n, Ei
           ring_.col(slot).data() + b,
           entering == nullptr ? nullptr : entering + b,
           ring_.col(slot).data() + b,
-          ring_.col(slot + window_).data() + b,
+          copy ? ring_.col(slot + window_).data() + b : nullptr,
           ring_.col(first).data() + b,
+          {original(newest), original(newest + 1), original(newest + 2)},
           decay_.data(),
           weights_.data(),
           head_reversed_.data()};
 }
 
-void FastHistory::run_ahead(Eigen::Index leaving_slot, Eigen::Index first) {
+void FastHistory::run_ahead(Eigen::Index leaving_slot, Eigen::Index first, Eigen::Index copy_slot) {
   const Eigen::Index d = ring_.rows(), terms = state_.cols();
   for (Eigen::Index b = 0; b < d; b += kBlock) {
     const Eigen::Index n = std::min(kBlock, d - b);
-    const internal::FastHistoryBlock rows = block(b, n, terms, leaving_slot, first, nullptr);
+    // The copy of the last x̃ in the ring's second half, which the caller left to this thread.
+    internal::copy_elements(ring_.col(copy_slot).data() + b,
+                            ring_.col(copy_slot + window_).data() + b, n);
+    const internal::FastHistoryBlock rows = block(b, n, terms, leaving_slot, first, nullptr, true);
     recursion_block(rows);
     older_window_block(rows);
   }
@@ -484,7 +499,7 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
     // Far below kParallelWork: one block on this thread, without the team's bookkeeping (a third
     // of a d = 1 push's instructions went there, callgrind); never run ahead (no second thread,
     // and visit_state refuses a small system's checkpoint that says so).
-    push_rows_across_terms(block(0, d, recurse ? terms : 0, slot, first, entering));
+    push_rows_across_terms(block(0, d, recurse ? terms : 0, slot, first, entering, true));
     ++size_;
     return;
   }
@@ -496,11 +511,17 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
       team_.measuring() ? team_.next_by_period(std::chrono::steady_clock::now()) : team_.next();
   finish_ahead();
   const bool run_recursions = recurse && !ahead_;
+  // When the next push runs ahead, x̃_k goes into the ring's first half only, and the second
+  // thread writes its copy in the second half (which keeps the window's columns contiguous) at the
+  // start of its job. The caller's step is the critical path, and the copy's lines, last read by
+  // the other core, cost it their transfer: β-FPUT at d = 1000 with threads = 2 took 9.5–10.4 µs a
+  // step with the caller writing both columns, 8.0–8.7 like this (bench/RESULTS.md).
+  const bool post_next = ahead_thread_ && threads > 1 && size_ + 1 >= n0 && size_ + 1 < capacity_;
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
     for (Eigen::Index b = lo; b < hi; b += kBlock) {
       const Eigen::Index n = std::min(kBlock, hi - b);
       const internal::FastHistoryBlock rows =
-          block(b, n, run_recursions ? terms : 0, slot, first, entering);
+          block(b, n, run_recursions ? terms : 0, slot, first, entering, !post_next);
       if (!ahead_) {
         recursion_block(rows);
         older_window_block(rows);
@@ -513,9 +534,9 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   internal::for_blocks(d, ahead_thread_ ? 1 : threads, update);
   ahead_ = false;
   ++size_;
-  if (ahead_thread_ && threads > 1 && size_ >= n0 && size_ < capacity_) {
+  if (post_next) {
     ahead_thread_->post(static_cast<Eigen::Index>(size_ % n0),
-                        static_cast<Eigen::Index>((size_ + 1) % n0));
+                        static_cast<Eigen::Index>((size_ + 1) % n0), slot);
     ahead_ = true;
   }
 }

@@ -25,8 +25,9 @@
 // the caller computes the rest of step k+1, and push k+1 only waits for them and makes the last
 // addition: nearly the whole history leaves the caller's path instead of being split with it (the
 // rest of a step is serial: at d = 10^4 a split history allowed ≤ 1.3×, bench/RESULTS.md). The
-// operations and their order are those of the one-thread push, so the sums are bit for bit the
-// same.
+// caller then writes x̃_k into the ring once, and the second thread makes the second-half copy:
+// what crosses between the cores on the caller's path is only x̃_k and the tail. The operations
+// and their order are those of the one-thread push, so the sums are bit for bit the same.
 #pragma once
 
 #include <Eigen/Dense>
@@ -118,12 +119,15 @@ class FastHistory final : public History {
 
   void configure_threads(int threads);
   // Rows [b, b + n) of a push: `terms` recursions (0: none) with x̃ from ring column `slot`, the
-  // window from column `first`, the new value `entering` (null: the recursions alone).
+  // window from column `first`, the new value `entering` (null: the recursions alone), written
+  // into both ring columns with `copy`, into the first only without (the second thread copies).
   internal::FastHistoryBlock block(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
-                                   Eigen::Index slot, Eigen::Index first, const double* entering);
+                                   Eigen::Index slot, Eigen::Index first, const double* entering,
+                                   bool copy);
   // The next push's recursions with x̃ from ring column `leaving_slot`, and its tail plus the
-  // window's terms before the last addition, from column `first` on, into tail_ (all rows).
-  void run_ahead(Eigen::Index leaving_slot, Eigen::Index first);
+  // window's terms before the last addition, from column `first` on, into tail_ (all rows); first
+  // the copy of ring column `copy_slot` (the x̃ just pushed) into its second-half column.
+  void run_ahead(Eigen::Index leaving_slot, Eigen::Index first, Eigen::Index copy_slot);
   void finish_ahead() const;  // waits for recursions in flight
 };
 
