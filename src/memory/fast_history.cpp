@@ -440,8 +440,13 @@ constexpr Eigen::Index kBlock = 256;
 internal::FastHistoryBlock FastHistory::block(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
                                               Eigen::Index slot, Eigen::Index first,
                                               const double* entering, bool copy) {
+  // The last group's older columns in the ring's first half. first + newest_start + 2 < 2 n0 when
+  // the group has four (the only case that reads them), so one subtraction wraps (no division:
+  // this runs at every push, d = 1 included).
   const Eigen::Index newest = first + newest_start(window_);
-  auto original = [&](Eigen::Index c) { return ring_.col(c % window_).data() + b; };
+  auto original = [&](Eigen::Index c) {
+    return ring_.col(c < window_ ? c : c - window_).data() + b;
+  };
   return {n,
           terms,
           state_.rows(),
