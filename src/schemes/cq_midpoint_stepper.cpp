@@ -77,8 +77,14 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
   }
   for (Eigen::VectorXd* vec :
        {&x_cur_, &x_next_, &v_cur_, &v_next_, &x_first_, &p_, &p_plus_, &p_minus_, &force_,
-        &force_next_, &w_, &w_next_, &sum_, &x_tilde_, &f_mid_, &rhs_, &mid_, &grad_, &dx_}) {
+        &force_next_, &w_, &sum_, &x_tilde_, &f_mid_, &rhs_, &mid_, &grad_, &dx_}) {
     vec->setZero(d_);
+  }
+  fused_passes_ =
+      damped_ && mass_solver_.diagonal() != nullptr && force_matrix_.stored_diagonal() != nullptr;
+  if (fused_passes_) {
+    tilde_x0_ = shift_x0_ ? problem.x0 : Eigen::VectorXd::Zero(d_);
+    tilde_v0_ = shift_v0_ ? problem.v0 : Eigen::VectorXd::Zero(d_);
   }
   g_mid_.setZero(d_);
 
@@ -153,7 +159,10 @@ Status CqMidpointStepper::advance() {
     f_ptr = &f_mid_;
   }
 
-  if (k == 0 && options_.start == StartValue::kExplicitEuler) {
+  const bool euler_start = k == 0 && options_.start == StartValue::kExplicitEuler;
+  // The fused passes below form p⁻_{k+1} from Δ_k (not the Euler start's).
+  const bool fused = fused_passes_ && !euler_start;
+  if (euler_start) {
     // Negative control only: x_1 = x_0 + h v_0, momentum from its discrete Legendre transform.
     dx_ = h_ * problem_.v0;
     mid_ = xk + 0.5 * dx_;
@@ -177,15 +186,21 @@ Status CqMidpointStepper::advance() {
     if (const Status s = newton_outcome(report, "M + (h^2/4) Hess U"); s != Status::kSuccess)
       return s;
     // p⁻_{k+1} = 2MΔ_k/h − p⁺_k (the two one-sided momenta average to M Δ_k/h).
-    mass_.multiply(dx_, p_minus_);
-    // One pass, the same roundings as *= then −= (the element passes here and below:
-    // vector_passes.hpp; an Eigen expression's set-up costs more than its work at d = 1).
-    scale_and_subtract_pass(2.0 / h_, p_plus_.data(), p_minus_.data(), d_);
+    if (!fused) {
+      mass_.multiply(dx_, p_minus_);
+      // One pass, the same roundings as *= then −= (the element passes here and below:
+      // vector_passes.hpp; an Eigen expression's set-up costs more than its work at d = 1).
+      scale_and_subtract_pass(2.0 / h_, p_plus_.data(), p_minus_.data(), d_);
+    }
   }
-  // x_{k+1} and its check in one pass.
-  if (!add_and_check(xk.data(), dx_.data(), x_next_.data(), d_)) {
-    return fail(Status::kNonFinite, "non-finite position");
-  }
+  // x_{k+1} and its check in one pass; with a diagonal M, p⁻_{k+1} and x̃_{k+1} in the same pass.
+  const bool position_finite =
+      fused ? new_position_pass(mass_solver_.diagonal()->data(), dx_.data(), 2.0 / h_,
+                                p_plus_.data(), xk.data(), tilde_x0_.data(),
+                                static_cast<double>(k + 1) * h_, tilde_v0_.data(), p_minus_.data(),
+                                x_next_.data(), use_history_ ? x_tilde_.data() : nullptr, d_)
+            : add_and_check(xk.data(), dx_.data(), x_next_.data(), d_);
+  if (!position_finite) return fail(Status::kNonFinite, "non-finite position");
 
   // Damping force at the new point, grid momentum p_{k+1} = p⁻_{k+1} − (h/2)F_{k+1}, velocity.
   if (viscous_local_ && damped_) {
@@ -193,26 +208,37 @@ Status CqMidpointStepper::advance() {
     // (−x_k) + x_{k+1}, the same floating-point operations as the direct sum (bitwise equal).
     sum_ = x_next_ - xk;
   } else if (damped_) {
-    tilde(x_next_, k + 1, x_tilde_);
+    if (!fused) tilde(x_next_, k + 1, x_tilde_);
     history_->push(x_tilde_);
     history_->sum(sum_);
     if (memory_start_ == MemoryStart::kTaylorSplit)
       add_polynomial_force(k + 1, problem_.x0, problem_.v0, sum_);
   }
-  if (damped_) force_matrix_.multiply(sum_, force_next_);
-  subtract_scaled_pass(p_minus_.data(), 0.5 * h_, force_next_.data(), p_.data(), d_);
-  mass_solver_.inverse(p_, v_next_);
+  // With diagonal M and R', F_{k+1}, p_{k+1}, v_{k+1} (and M⁻¹F_{k+1} for the energy account) in
+  // one pass; for M = I, M⁻¹F_{k+1} is F_{k+1} itself.
+  const Eigen::VectorXd& minv_force = fused_passes_ && mass_solver_.unit_mass() ? force_next_ : w_;
+  bool velocity_finite = true;
+  if (fused_passes_) {
+    velocity_finite = new_momentum_pass(force_matrix_.stored_diagonal()->data(), sum_.data(),
+                                        p_minus_.data(), 0.5 * h_, mass_solver_.diagonal()->data(),
+                                        mass_solver_.unit_mass(), force_next_.data(), p_.data(),
+                                        v_next_.data(), diagnostics_ ? w_.data() : nullptr, d_);
+  } else {
+    if (damped_) force_matrix_.multiply(sum_, force_next_);
+    subtract_scaled_pass(p_minus_.data(), 0.5 * h_, force_next_.data(), p_.data(), d_);
+    mass_solver_.inverse(p_, v_next_);
+  }
 
   // Energy account (solution.hpp; start_step.md §4).
   double fv_next = 0.0, fw_next = 0.0;
   if (diagnostics_) {
-    if (damped_) mass_solver_.inverse_damping(sum_, force_next_, w_next_);  // M⁻¹F_{k+1}
+    if (damped_ && !fused_passes_) mass_solver_.inverse_damping(sum_, force_next_, w_);
     if (d_ >= kVectorPassesFrom) {
       fv_next = dot_pass(force_next_.data(), v_next_.data(), d_);
-      fw_next = dot_pass(force_next_.data(), w_next_.data(), d_);
+      fw_next = dot_pass(force_next_.data(), minv_force.data(), d_);
     } else {
       fv_next = force_next_.dot(v_next_);
-      fw_next = force_next_.dot(w_next_);
+      fw_next = force_next_.dot(minv_force);
     }
     work_ += 0.5 * h_ * (fv_ + fv_next) + 0.125 * h_ * h_ * (fw_next - fw_);
     // The extra start impulse (w − ½) h F_0 of the singular RL force: the kinetic energy it
@@ -245,14 +271,15 @@ Status CqMidpointStepper::advance() {
       supplied_ += du;
     }
   }
-  if (!all_finite_pass(v_next_.data(), d_)) return fail(Status::kNonFinite, "non-finite velocity");
+  if (!(fused_passes_ ? velocity_finite : all_finite_pass(v_next_.data(), d_))) {
+    return fail(Status::kNonFinite, "non-finite velocity");
+  }
 
   if (k == 0) x_first_ = x_next_;  // the mirror run starts from x_0, x_1
   ++k_;
   x_cur_.swap(x_next_);
   v_cur_.swap(v_next_);
   force_.swap(force_next_);
-  w_.swap(w_next_);
   fv_ = fv_next;
   fw_ = fw_next;
   return Status::kSuccess;
@@ -264,7 +291,6 @@ void CqMidpointStepper::visit_state(StateArchive& archive) {
   archive.dense("cq_midpoint.v", v_cur_);
   archive.dense("cq_midpoint.p", p_);
   archive.dense("cq_midpoint.force", force_);  // F_k
-  archive.dense("cq_midpoint.w", w_);          // M⁻¹F_k (energy account)
   // Newton's predictor is the previous increment Δ_{k−1}: it changes the iterates, hence the
   // last bits of a nonlinear step.
   archive.dense("cq_midpoint.increment", dx_);

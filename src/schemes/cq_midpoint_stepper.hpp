@@ -79,7 +79,6 @@ class CqMidpointStepper final : public Stepper {
   // P from the initial data x0, v0 (the problem's, or the mirror run's own copies).
   void add_polynomial_force(std::size_t k, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                             Eigen::VectorXd& s) const;
-  void damping_force(Eigen::VectorXd& f_out, Eigen::VectorXd& w_out);
 
   const InitialValueProblem& problem_;
   IntegratorOptions options_;
@@ -107,9 +106,15 @@ class CqMidpointStepper final : public Stepper {
 
   std::size_t k_ = 0;
   Eigen::VectorXd x_cur_, x_next_, v_cur_, v_next_, x_first_;
-  Eigen::VectorXd p_, p_plus_, p_minus_, force_, force_next_, w_, w_next_, sum_, x_tilde_, f_mid_,
-      rhs_, mid_, grad_, dx_,
-      g_mid_;  // g(x̄_k, Δ_k/h, t_{k+½}), the non-conservative force of the cell
+  Eigen::VectorXd p_, p_plus_, p_minus_, force_, force_next_, sum_, x_tilde_, f_mid_, rhs_, mid_,
+      grad_, dx_,
+      g_mid_;          // g(x̄_k, Δ_k/h, t_{k+½}), the non-conservative force of the cell
+  Eigen::VectorXd w_;  // M⁻¹F_{k+1}, of the energy account only (its F·w)
+  // Diagonal M (quotients in mass_solver_) and R', the chains' with damping: the element passes
+  // after the Newton solve run as two fused passes (new_position_pass, new_momentum_pass), the
+  // same roundings.
+  bool fused_passes_ = false;
+  Eigen::VectorXd tilde_x0_, tilde_v0_;  // x_0 and v_0 as x̃ subtracts them (zero where not)
   double fv_ = 0.0, fw_ = 0.0, work_ = 0.0, supplied_ = 0.0;
 };
 

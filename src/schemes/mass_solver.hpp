@@ -67,6 +67,12 @@ class MassSolver {
       factor_->solve_in_place(out);
     }
   }
+  /// The diagonal m of M = diag(m) when inverse() is the quotient by it (or the copy, M = I),
+  /// else null (a dense M's explicit inverse, a factored sparse M).
+  [[nodiscard]] const Eigen::VectorXd* diagonal() const {
+    return !dense_ && mass_diagonal_.size() > 0 ? &mass_diagonal_ : nullptr;
+  }
+  [[nodiscard]] bool unit_mass() const { return unit_mass_; }
   /// out = M⁻¹ R' s, given force = R' s (the step forms it anyway): M⁻¹ applied to it, except on
   /// the dense path, which multiplies s by its M⁻¹R'. (On the other paths this is the quotient or
   /// solve of R' s, the numbers of forming R' s again here, without the second product.)

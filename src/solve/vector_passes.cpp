@@ -60,6 +60,20 @@ void shifted(const double* x, const double* x0, double t, const double* v0, doub
 }
 
 FRACVI_HOT_KERNEL
+bool new_position(const double* m, const double* increment, double s, const double* p_plus,
+                  const double* a, const double* x0, double t, const double* v0, double* p_minus,
+                  double* next, double* tilde, Eigen::Index n) {
+  return loops::new_position<true>(m, increment, s, p_plus, a, x0, t, v0, p_minus, next, tilde, n);
+}
+
+FRACVI_HOT_KERNEL
+bool new_momentum(const double* r, const double* sum, const double* p_minus, double c,
+                  const double* m, bool unit_mass, double* force, double* p, double* v, double* w,
+                  Eigen::Index n) {
+  return loops::new_momentum<true>(r, sum, p_minus, c, m, unit_mass, force, p, v, w, n);
+}
+
+FRACVI_HOT_KERNEL
 double dot(const double* a, const double* b, Eigen::Index n) {
   return loops::dot<true>(a, b, n);
 }

@@ -74,6 +74,11 @@ class ModelMatrix {
   [[nodiscard]] bool all_finite() const;
   /// True when only diagonal entries are non-zero.
   [[nodiscard]] bool is_diagonal() const;
+  /// The diagonal of a matrix stored sparse with only diagonal entries (what multiply() uses for
+  /// it), else null.
+  [[nodiscard]] const Eigen::VectorXd* stored_diagonal() const {
+    return diagonal_.size() > 0 ? &diagonal_ : nullptr;
+  }
   /// max |a_ij| (0 for an empty matrix).
   [[nodiscard]] double max_abs() const;
   /// max |a_ij − a_ji|.

@@ -171,6 +171,74 @@ FRACVI_PASS void shifted(const double* x, const double* x0, double t, const doub
   }
 }
 
+// The rest of a step after its increment, for a diagonal M = diag(m) (the chains'):
+// p⁻_i = (m_i Δ_i)·s − p⁺_i, x_next_i = a_i + Δ_i and, with kTilde, x̃_i = (x_next_i − x0_i) −
+// t v0_i — the roundings of M Δ, then of scale_and_subtract, add_and_check and shifted (a zero x0
+// or v0 stands for a term left out: x − 0 and y − t·0 are x and y). Returns whether every
+// x_next_i is finite.
+template <bool kSimd, bool kTilde>
+[[gnu::always_inline]] inline bool new_position_loop(const double* m, const double* increment,
+                                                     double s, const double* p_plus,
+                                                     const double* a, const double* x0, double t,
+                                                     const double* v0, double* p_minus,
+                                                     double* next, double* tilde, Eigen::Index n) {
+  double zero = 0.0;
+#pragma omp simd if (simd : kSimd) reduction(+ : zero)
+  for (Eigen::Index i = 0; i < n; ++i) {
+    p_minus[i] = (m[i] * increment[i]) * s - p_plus[i];
+    const double value = a[i] + increment[i];
+    next[i] = value;
+    zero += 0.0 * value;
+    if constexpr (kTilde) tilde[i] = (value - x0[i]) - t * v0[i];
+  }
+  return zero == 0.0;
+}
+
+FRACVI_PASS bool new_position(const double* m, const double* increment, double s,
+                              const double* p_plus, const double* a, const double* x0, double t,
+                              const double* v0, double* p_minus, double* next, double* tilde,
+                              Eigen::Index n) {
+  return tilde != nullptr ? new_position_loop<kSimd, true>(m, increment, s, p_plus, a, x0, t, v0,
+                                                           p_minus, next, tilde, n)
+                          : new_position_loop<kSimd, false>(m, increment, s, p_plus, a, x0, t, v0,
+                                                            p_minus, next, tilde, n);
+}
+
+// The damping force and the new momentum and velocity, for diagonal M = diag(m) and R' = diag(r):
+// F_i = r_i s_i, p_i = p⁻_i − c F_i, v_i = p_i / m_i (p_i itself with kUnitMass, M = I) and, with
+// kQuotient, w_i = F_i / m_i — the roundings of R' s, subtract_scaled and the mass solver's
+// quotients. Returns whether every v_i is finite.
+template <bool kSimd, bool kUnitMass, bool kQuotient>
+[[gnu::always_inline]] inline bool new_momentum_loop(const double* r, const double* sum,
+                                                     const double* p_minus, double c,
+                                                     const double* m, double* force, double* p,
+                                                     double* v, double* w, Eigen::Index n) {
+  double zero = 0.0;
+#pragma omp simd if (simd : kSimd) reduction(+ : zero)
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double f = r[i] * sum[i];
+    force[i] = f;
+    const double momentum = p_minus[i] - c * f;
+    p[i] = momentum;
+    const double velocity = kUnitMass ? momentum : momentum / m[i];
+    v[i] = velocity;
+    zero += 0.0 * velocity;
+    if constexpr (kQuotient) w[i] = f / m[i];
+  }
+  return zero == 0.0;
+}
+
+FRACVI_PASS bool new_momentum(const double* r, const double* sum, const double* p_minus, double c,
+                              const double* m, bool unit_mass, double* force, double* p, double* v,
+                              double* w, Eigen::Index n) {
+  if (unit_mass) {
+    return new_momentum_loop<kSimd, true, false>(r, sum, p_minus, c, m, force, p, v, w, n);
+  }
+  return w != nullptr
+             ? new_momentum_loop<kSimd, false, true>(r, sum, p_minus, c, m, force, p, v, w, n)
+             : new_momentum_loop<kSimd, false, false>(r, sum, p_minus, c, m, force, p, v, w, n);
+}
+
 FRACVI_PASS double dot(const double* a, const double* b, Eigen::Index n) {
   double sum = 0.0;
 #pragma omp simd if (simd : kSimd) reduction(+ : sum)
@@ -209,6 +277,12 @@ void scale_and_subtract(double s, const double* b, double* a, Eigen::Index n);
 void subtract_scaled(const double* a, double s, const double* b, double* out, Eigen::Index n);
 void shifted(const double* x, const double* x0, double t, const double* v0, double* out,
              Eigen::Index n);
+bool new_position(const double* m, const double* increment, double s, const double* p_plus,
+                  const double* a, const double* x0, double t, const double* v0, double* p_minus,
+                  double* next, double* tilde, Eigen::Index n);
+bool new_momentum(const double* r, const double* sum, const double* p_minus, double c,
+                  const double* m, bool unit_mass, double* force, double* p, double* v, double* w,
+                  Eigen::Index n);
 double dot(const double* a, const double* b, Eigen::Index n);
 double weighted_squares(const double* w, const double* x, Eigen::Index n);
 }  // namespace kernels
@@ -267,6 +341,22 @@ inline void subtract_scaled_pass(const double* a, double s, const double* b, dou
 inline void shifted_pass(const double* x, const double* x0, double t, const double* v0, double* out,
                          Eigen::Index n) {
   FRACVI_DISPATCH(shifted, x, x0, t, v0, out, n);
+}
+/// For M = diag(m): p⁻_i = (m_i Δ_i) s − p⁺_i, x_next_i = a_i + Δ_i and (unless `tilde` is
+/// null) x̃_i = (x_next_i − x0_i) − t v0_i; returns whether every x_next_i is finite.
+inline bool new_position_pass(const double* m, const double* increment, double s,
+                              const double* p_plus, const double* a, const double* x0, double t,
+                              const double* v0, double* p_minus, double* next, double* tilde,
+                              Eigen::Index n) {
+  return FRACVI_DISPATCH(new_position, m, increment, s, p_plus, a, x0, t, v0, p_minus, next, tilde,
+                         n);
+}
+/// For M = diag(m), R' = diag(r): F_i = r_i s_i, p_i = p⁻_i − c F_i, v_i = p_i / m_i (p_i for
+/// `unit_mass`) and (unless `w` is null) w_i = F_i / m_i; returns whether every v_i is finite.
+inline bool new_momentum_pass(const double* r, const double* sum, const double* p_minus, double c,
+                              const double* m, bool unit_mass, double* force, double* p, double* v,
+                              double* w, Eigen::Index n) {
+  return FRACVI_DISPATCH(new_momentum, r, sum, p_minus, c, m, unit_mass, force, p, v, w, n);
 }
 
 #undef FRACVI_DISPATCH

@@ -1,0 +1,140 @@
+// The fused element passes of the CQ midpoint step for diagonal M and R' (new_position_pass,
+// new_momentum_pass, solve/vector_passes.hpp) against the passes they replace, applied one after
+// another: the same numbers bit for bit, below kVectorPassesFrom (the inlined loops) and above it
+// (the kernels and their x86-64-v3 clones), and the same finiteness verdicts.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "fracvi/model/model_matrix.hpp"
+#include "fracvi/solve/vector_passes.hpp"
+
+namespace fracvi::internal {
+namespace {
+
+Eigen::VectorXd random_vector(Eigen::Index n, std::mt19937& rng, double lo = -2.0,
+                              double hi = 2.0) {
+  std::uniform_real_distribution<double> u(lo, hi);
+  Eigen::VectorXd v(n);
+  for (Eigen::Index i = 0; i < n; ++i) v[i] = u(rng);
+  return v;
+}
+
+bool bitwise_equal(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  if (a.size() != b.size()) return false;
+  for (Eigen::Index i = 0; i < a.size(); ++i) {
+    if (std::signbit(a[i]) != std::signbit(b[i])) return false;
+    if (!(a[i] == b[i]) && !(std::isnan(a[i]) && std::isnan(b[i]))) return false;
+  }
+  return true;
+}
+
+// The sizes of both dispatch branches.
+constexpr Eigen::Index kSizes[] = {5, kVectorPassesFrom + 69};
+
+TEST(StepPasses, NewPositionIsTheSeparatePassesBitForBit) {
+  std::mt19937 rng(7);
+  for (const Eigen::Index n : kSizes) {
+    for (const bool unit : {true, false}) {
+      for (const int shift : {0, 1, 2, 3}) {  // bit 0: x_0 shifted, bit 1: v_0 shifted
+        const Eigen::VectorXd m = unit ? Eigen::VectorXd::Ones(n) : random_vector(n, rng, 0.5, 3.0);
+        const Eigen::VectorXd dx = random_vector(n, rng, -1e-2, 1e-2);
+        const Eigen::VectorXd p_plus = random_vector(n, rng), a = random_vector(n, rng);
+        const Eigen::VectorXd x0 = random_vector(n, rng), v0 = random_vector(n, rng);
+        const double s = 2.0 / 0.01, t = 0.37;
+        const bool sx = (shift & 1) != 0, sv = (shift & 2) != 0;
+        // The passes one after another, as the step runs them without fusion.
+        Eigen::VectorXd p_minus_ref(n), next_ref(n), tilde_ref(n);
+        ModelMatrix::diagonal(m).multiply(dx, p_minus_ref);
+        scale_and_subtract_pass(s, p_plus.data(), p_minus_ref.data(), n);
+        ASSERT_TRUE(add_and_check(a.data(), dx.data(), next_ref.data(), n));
+        shifted_pass(next_ref.data(), sx ? x0.data() : nullptr, t, sv ? v0.data() : nullptr,
+                     tilde_ref.data(), n);
+        // Fused: a term left out is a zero vector.
+        const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n);
+        Eigen::VectorXd p_minus(n), next(n), tilde(n);
+        ASSERT_TRUE(new_position_pass(m.data(), dx.data(), s, p_plus.data(), a.data(),
+                                      sx ? x0.data() : zero.data(), t, sv ? v0.data() : zero.data(),
+                                      p_minus.data(), next.data(), tilde.data(), n));
+        EXPECT_TRUE(bitwise_equal(p_minus, p_minus_ref)) << "n = " << n;
+        EXPECT_TRUE(bitwise_equal(next, next_ref)) << "n = " << n;
+        EXPECT_TRUE(bitwise_equal(tilde, tilde_ref)) << "n = " << n << ", shift " << shift;
+        // Without x̃ (no history): the other outputs alike, x̃ untouched.
+        Eigen::VectorXd untouched = Eigen::VectorXd::Constant(n, 5.0);
+        ASSERT_TRUE(new_position_pass(m.data(), dx.data(), s, p_plus.data(), a.data(), x0.data(), t,
+                                      v0.data(), p_minus.data(), next.data(), nullptr, n));
+        EXPECT_TRUE(bitwise_equal(p_minus, p_minus_ref));
+        EXPECT_TRUE(bitwise_equal(next, next_ref));
+        EXPECT_TRUE((untouched.array() == 5.0).all());
+      }
+    }
+  }
+}
+
+TEST(StepPasses, NewMomentumIsTheSeparatePassesBitForBit) {
+  std::mt19937 rng(11);
+  for (const Eigen::Index n : kSizes) {
+    for (const bool unit : {true, false}) {
+      const Eigen::VectorXd m = unit ? Eigen::VectorXd::Ones(n) : random_vector(n, rng, 0.5, 3.0);
+      const Eigen::VectorXd r = random_vector(n, rng, 0.1, 50.0);
+      const Eigen::VectorXd sum = random_vector(n, rng), p_minus = random_vector(n, rng);
+      const double c = 0.005;
+      // R' s, p⁻ − c F, then the mass solver's quotients (a copy for M = I).
+      Eigen::VectorXd force_ref(n), p_ref(n), v_ref(n), w_ref(n);
+      ModelMatrix::diagonal(r).multiply(sum, force_ref);
+      subtract_scaled_pass(p_minus.data(), c, force_ref.data(), p_ref.data(), n);
+      if (unit) {
+        v_ref = p_ref;
+        w_ref = force_ref;
+      } else {
+        v_ref.array() = p_ref.array() / m.array();
+        w_ref.array() = force_ref.array() / m.array();
+      }
+      for (const bool with_w : {true, false}) {
+        Eigen::VectorXd force(n), p(n), v(n), w = Eigen::VectorXd::Constant(n, 5.0);
+        ASSERT_TRUE(new_momentum_pass(r.data(), sum.data(), p_minus.data(), c, m.data(), unit,
+                                      force.data(), p.data(), v.data(), with_w ? w.data() : nullptr,
+                                      n));
+        EXPECT_TRUE(bitwise_equal(force, force_ref)) << "n = " << n << ", unit " << unit;
+        EXPECT_TRUE(bitwise_equal(p, p_ref));
+        EXPECT_TRUE(bitwise_equal(v, v_ref));
+        // w: the quotients when asked for and M ≠ I; for M = I the step takes F itself.
+        if (with_w && !unit) {
+          EXPECT_TRUE(bitwise_equal(w, w_ref));
+        } else {
+          EXPECT_TRUE((w.array() == 5.0).all());
+        }
+      }
+    }
+  }
+}
+
+TEST(StepPasses, NonFiniteValuesAreReported) {
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  std::mt19937 rng(3);
+  for (const Eigen::Index n : kSizes) {
+    const Eigen::VectorXd m = random_vector(n, rng, 0.5, 3.0), x = random_vector(n, rng);
+    Eigen::VectorXd dx = random_vector(n, rng), out1(n), out2(n), out3(n), out4(n);
+    EXPECT_TRUE(new_position_pass(m.data(), dx.data(), 2.0, x.data(), x.data(), x.data(), 0.1,
+                                  x.data(), out1.data(), out2.data(), out3.data(), n));
+    dx[n - 1] = kInf;  // the last element: the simd loop's remainder above kVectorPassesFrom
+    EXPECT_FALSE(new_position_pass(m.data(), dx.data(), 2.0, x.data(), x.data(), x.data(), 0.1,
+                                   x.data(), out1.data(), out2.data(), out3.data(), n));
+    Eigen::VectorXd sum = random_vector(n, rng);
+    for (const bool unit : {true, false}) {
+      sum[0] = 1.0;
+      EXPECT_TRUE(new_momentum_pass(m.data(), sum.data(), x.data(), 0.5, m.data(), unit,
+                                    out1.data(), out2.data(), out3.data(), out4.data(), n));
+      sum[0] = kNaN;
+      EXPECT_FALSE(new_momentum_pass(m.data(), sum.data(), x.data(), 0.5, m.data(), unit,
+                                     out1.data(), out2.data(), out3.data(), out4.data(), n));
+    }
+  }
+}
+
+}  // namespace
+}  // namespace fracvi::internal
