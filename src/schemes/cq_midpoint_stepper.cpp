@@ -214,15 +214,15 @@ Status CqMidpointStepper::advance() {
     if (memory_start_ == MemoryStart::kTaylorSplit)
       add_polynomial_force(k + 1, problem_.x0, problem_.v0, sum_);
   }
-  // With diagonal M and R', F_{k+1}, p_{k+1}, v_{k+1} (and M⁻¹F_{k+1} for the energy account) in
-  // one pass; for M = I, M⁻¹F_{k+1} is F_{k+1} itself.
-  const Eigen::VectorXd& minv_force = fused_passes_ && mass_solver_.unit_mass() ? force_next_ : w_;
-  bool velocity_finite = true;
+  // With diagonal M and R', F_{k+1}, p_{k+1}, v_{k+1} and the energy account's F·v and F·M⁻¹F
+  // (from kVectorPassesFrom on, in dot_pass's order) in one pass; for M = I, M⁻¹F_{k+1} is F_{k+1}.
+  const bool vector_dots = diagnostics_ && d_ >= kVectorPassesFrom;
+  MomentumPass momentum;
   if (fused_passes_) {
-    velocity_finite = new_momentum_pass(force_matrix_.stored_diagonal()->data(), sum_.data(),
-                                        p_minus_.data(), 0.5 * h_, mass_solver_.diagonal()->data(),
-                                        mass_solver_.unit_mass(), force_next_.data(), p_.data(),
-                                        v_next_.data(), diagnostics_ ? w_.data() : nullptr, d_);
+    momentum = new_momentum_pass(
+        force_matrix_.stored_diagonal()->data(), sum_.data(), p_minus_.data(), 0.5 * h_,
+        mass_solver_.diagonal()->data(), mass_solver_.unit_mass(), force_next_.data(), p_.data(),
+        v_next_.data(), diagnostics_ ? w_.data() : nullptr, vector_dots, d_);
   } else {
     if (damped_) force_matrix_.multiply(sum_, force_next_);
     subtract_scaled_pass(p_minus_.data(), 0.5 * h_, force_next_.data(), p_.data(), d_);
@@ -232,13 +232,20 @@ Status CqMidpointStepper::advance() {
   // Energy account (solution.hpp; start_step.md §4).
   double fv_next = 0.0, fw_next = 0.0;
   if (diagnostics_) {
-    if (damped_ && !fused_passes_) mass_solver_.inverse_damping(sum_, force_next_, w_);
-    if (d_ >= kVectorPassesFrom) {
-      fv_next = dot_pass(force_next_.data(), v_next_.data(), d_);
-      fw_next = dot_pass(force_next_.data(), minv_force.data(), d_);
+    const Eigen::VectorXd& minv_force =
+        fused_passes_ && mass_solver_.unit_mass() ? force_next_ : w_;
+    if (fused_passes_ && vector_dots) {
+      fv_next = momentum.fv;
+      fw_next = momentum.fw;
     } else {
-      fv_next = force_next_.dot(v_next_);
-      fw_next = force_next_.dot(minv_force);
+      if (damped_ && !fused_passes_) mass_solver_.inverse_damping(sum_, force_next_, w_);
+      if (vector_dots) {
+        fv_next = dot_pass(force_next_.data(), v_next_.data(), d_);
+        fw_next = dot_pass(force_next_.data(), minv_force.data(), d_);
+      } else {
+        fv_next = force_next_.dot(v_next_);
+        fw_next = force_next_.dot(minv_force);
+      }
     }
     work_ += 0.5 * h_ * (fv_ + fv_next) + 0.125 * h_ * h_ * (fw_next - fw_);
     // The extra start impulse (w − ½) h F_0 of the singular RL force: the kinetic energy it
@@ -271,7 +278,7 @@ Status CqMidpointStepper::advance() {
       supplied_ += du;
     }
   }
-  if (!(fused_passes_ ? velocity_finite : all_finite_pass(v_next_.data(), d_))) {
+  if (!(fused_passes_ ? momentum.finite : all_finite_pass(v_next_.data(), d_))) {
     return fail(Status::kNonFinite, "non-finite velocity");
   }
 

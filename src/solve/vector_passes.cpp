@@ -67,10 +67,10 @@ bool new_position(const double* m, const double* increment, double s, const doub
 }
 
 FRACVI_HOT_KERNEL
-bool new_momentum(const double* r, const double* sum, const double* p_minus, double c,
-                  const double* m, bool unit_mass, double* force, double* p, double* v, double* w,
-                  Eigen::Index n) {
-  return loops::new_momentum<true>(r, sum, p_minus, c, m, unit_mass, force, p, v, w, n);
+MomentumPass new_momentum(const double* r, const double* sum, const double* p_minus, double c,
+                          const double* m, bool unit_mass, double* force, double* p, double* v,
+                          double* w, bool with_dots, Eigen::Index n) {
+  return loops::new_momentum<true>(r, sum, p_minus, c, m, unit_mass, force, p, v, w, with_dots, n);
 }
 
 FRACVI_HOT_KERNEL

@@ -33,7 +33,7 @@ bool bitwise_equal(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
 }
 
 // The sizes of both dispatch branches.
-constexpr Eigen::Index kSizes[] = {5, kVectorPassesFrom + 69};
+constexpr Eigen::Index kSizes[] = {5, kVectorPassesFrom + 69, 1003};
 
 TEST(StepPasses, NewPositionIsTheSeparatePassesBitForBit) {
   std::mt19937 rng(7);
@@ -93,19 +93,31 @@ TEST(StepPasses, NewMomentumIsTheSeparatePassesBitForBit) {
         v_ref.array() = p_ref.array() / m.array();
         w_ref.array() = force_ref.array() / m.array();
       }
+      // The energy account's sums as the step forms them without fusion (dot_pass from
+      // kVectorPassesFrom on).
+      const double fv_ref = dot_pass(force_ref.data(), v_ref.data(), n);
+      const double fw_ref = dot_pass(force_ref.data(), w_ref.data(), n);
       for (const bool with_w : {true, false}) {
-        Eigen::VectorXd force(n), p(n), v(n), w = Eigen::VectorXd::Constant(n, 5.0);
-        ASSERT_TRUE(new_momentum_pass(r.data(), sum.data(), p_minus.data(), c, m.data(), unit,
-                                      force.data(), p.data(), v.data(), with_w ? w.data() : nullptr,
-                                      n));
-        EXPECT_TRUE(bitwise_equal(force, force_ref)) << "n = " << n << ", unit " << unit;
-        EXPECT_TRUE(bitwise_equal(p, p_ref));
-        EXPECT_TRUE(bitwise_equal(v, v_ref));
-        // w: the quotients when asked for and M ≠ I; for M = I the step takes F itself.
-        if (with_w && !unit) {
-          EXPECT_TRUE(bitwise_equal(w, w_ref));
-        } else {
-          EXPECT_TRUE((w.array() == 5.0).all());
+        for (const bool with_dots : {true, false}) {
+          if (with_dots && n < kVectorPassesFrom) continue;  // the step keeps Eigen's sums there
+          Eigen::VectorXd force(n), p(n), v(n), w = Eigen::VectorXd::Constant(n, 5.0);
+          const MomentumPass pass = new_momentum_pass(
+              r.data(), sum.data(), p_minus.data(), c, m.data(), unit, force.data(), p.data(),
+              v.data(), with_w ? w.data() : nullptr, with_dots && (unit || with_w), n);
+          ASSERT_TRUE(pass.finite);
+          EXPECT_TRUE(bitwise_equal(force, force_ref)) << "n = " << n << ", unit " << unit;
+          EXPECT_TRUE(bitwise_equal(p, p_ref));
+          EXPECT_TRUE(bitwise_equal(v, v_ref));
+          // w: the quotients when asked for and M ≠ I; for M = I the step takes F itself.
+          if (with_w && !unit) {
+            EXPECT_TRUE(bitwise_equal(w, w_ref));
+          } else {
+            EXPECT_TRUE((w.array() == 5.0).all());
+          }
+          if (with_dots && (unit || with_w)) {
+            EXPECT_EQ(pass.fv, fv_ref) << "n = " << n << ", unit " << unit;
+            EXPECT_EQ(pass.fw, fw_ref) << "n = " << n << ", unit " << unit;
+          }
         }
       }
     }
@@ -128,10 +140,12 @@ TEST(StepPasses, NonFiniteValuesAreReported) {
     for (const bool unit : {true, false}) {
       sum[0] = 1.0;
       EXPECT_TRUE(new_momentum_pass(m.data(), sum.data(), x.data(), 0.5, m.data(), unit,
-                                    out1.data(), out2.data(), out3.data(), out4.data(), n));
+                                    out1.data(), out2.data(), out3.data(), out4.data(), false, n)
+                      .finite);
       sum[0] = kNaN;
       EXPECT_FALSE(new_momentum_pass(m.data(), sum.data(), x.data(), 0.5, m.data(), unit,
-                                     out1.data(), out2.data(), out3.data(), out4.data(), n));
+                                     out1.data(), out2.data(), out3.data(), out4.data(), false, n)
+                       .finite);
     }
   }
 }

@@ -39,6 +39,13 @@ struct CorrectionPass {
   bool finite = true;  // every updated Δ_i finite
 };
 
+/// What new_momentum_pass yields.
+struct MomentumPass {
+  bool finite = true;  // every v_i finite
+  double fv = 0.0;     // F·v (with_dots only)
+  double fw = 0.0;     // F·M⁻¹F (with_dots only)
+};
+
 // The loops, written once: inlined below kVectorPassesFrom as plain loops (kSimd = false), and
 // into the kernels' clones as simd loops (kSimd = true). (Every file is compiled with
 // -fopenmp-simd, CMakeLists.txt, so the simd pragmas act alike everywhere.) The maxima and the
@@ -205,16 +212,18 @@ FRACVI_PASS bool new_position(const double* m, const double* increment, double s
 }
 
 // The damping force and the new momentum and velocity, for diagonal M = diag(m) and R' = diag(r):
-// F_i = r_i s_i, p_i = p⁻_i − c F_i, v_i = p_i / m_i (p_i itself with kUnitMass, M = I) and, with
-// kQuotient, w_i = F_i / m_i — the roundings of R' s, subtract_scaled and the mass solver's
-// quotients. Returns whether every v_i is finite.
-template <bool kSimd, bool kUnitMass, bool kQuotient>
-[[gnu::always_inline]] inline bool new_momentum_loop(const double* r, const double* sum,
-                                                     const double* p_minus, double c,
-                                                     const double* m, double* force, double* p,
-                                                     double* v, double* w, Eigen::Index n) {
-  double zero = 0.0;
-#pragma omp simd if (simd : kSimd) reduction(+ : zero)
+// F_i = r_i s_i, p_i = p⁻_i − c F_i, v_i = p_i / m_i (p_i itself with kUnitMass, M = I), with
+// kQuotient w_i = F_i / m_i — the roundings of R' s, subtract_scaled and the mass solver's
+// quotients — and with kDots the energy account's F·v and F·M⁻¹F (F·F for M = I, F·w else),
+// summed as dot's simd reduction sums them (tested bit for bit, tests/integrate/step_passes_test).
+template <bool kSimd, bool kUnitMass, bool kQuotient, bool kDots>
+[[gnu::always_inline]] inline MomentumPass new_momentum_loop(const double* r, const double* sum,
+                                                             const double* p_minus, double c,
+                                                             const double* m, double* force,
+                                                             double* p, double* v, double* w,
+                                                             Eigen::Index n) {
+  double zero = 0.0, fv = 0.0, fw = 0.0;
+#pragma omp simd if (simd : kSimd) reduction(+ : zero, fv, fw)
   for (Eigen::Index i = 0; i < n; ++i) {
     const double f = r[i] * sum[i];
     force[i] = f;
@@ -223,20 +232,33 @@ template <bool kSimd, bool kUnitMass, bool kQuotient>
     const double velocity = kUnitMass ? momentum : momentum / m[i];
     v[i] = velocity;
     zero += 0.0 * velocity;
-    if constexpr (kQuotient) w[i] = f / m[i];
+    double quotient = f;
+    if constexpr (kQuotient) {
+      quotient = f / m[i];
+      w[i] = quotient;
+    }
+    if constexpr (kDots) {
+      fv += f * velocity;
+      fw += f * quotient;
+    }
   }
-  return zero == 0.0;
+  return {zero == 0.0, fv, fw};
 }
 
-FRACVI_PASS bool new_momentum(const double* r, const double* sum, const double* p_minus, double c,
-                              const double* m, bool unit_mass, double* force, double* p, double* v,
-                              double* w, Eigen::Index n) {
+FRACVI_PASS MomentumPass new_momentum(const double* r, const double* sum, const double* p_minus,
+                                      double c, const double* m, bool unit_mass, double* force,
+                                      double* p, double* v, double* w, bool with_dots,
+                                      Eigen::Index n) {
+#define FRACVI_MOMENTUM_LOOP(unit, quotient, dots) \
+  new_momentum_loop<kSimd, unit, quotient, dots>(r, sum, p_minus, c, m, force, p, v, w, n)
   if (unit_mass) {
-    return new_momentum_loop<kSimd, true, false>(r, sum, p_minus, c, m, force, p, v, w, n);
+    return with_dots ? FRACVI_MOMENTUM_LOOP(true, false, true)
+                     : FRACVI_MOMENTUM_LOOP(true, false, false);
   }
-  return w != nullptr
-             ? new_momentum_loop<kSimd, false, true>(r, sum, p_minus, c, m, force, p, v, w, n)
-             : new_momentum_loop<kSimd, false, false>(r, sum, p_minus, c, m, force, p, v, w, n);
+  if (w == nullptr) return FRACVI_MOMENTUM_LOOP(false, false, false);
+  return with_dots ? FRACVI_MOMENTUM_LOOP(false, true, true)
+                   : FRACVI_MOMENTUM_LOOP(false, true, false);
+#undef FRACVI_MOMENTUM_LOOP
 }
 
 FRACVI_PASS double dot(const double* a, const double* b, Eigen::Index n) {
@@ -280,9 +302,9 @@ void shifted(const double* x, const double* x0, double t, const double* v0, doub
 bool new_position(const double* m, const double* increment, double s, const double* p_plus,
                   const double* a, const double* x0, double t, const double* v0, double* p_minus,
                   double* next, double* tilde, Eigen::Index n);
-bool new_momentum(const double* r, const double* sum, const double* p_minus, double c,
-                  const double* m, bool unit_mass, double* force, double* p, double* v, double* w,
-                  Eigen::Index n);
+MomentumPass new_momentum(const double* r, const double* sum, const double* p_minus, double c,
+                          const double* m, bool unit_mass, double* force, double* p, double* v,
+                          double* w, bool with_dots, Eigen::Index n);
 double dot(const double* a, const double* b, Eigen::Index n);
 double weighted_squares(const double* w, const double* x, Eigen::Index n);
 }  // namespace kernels
@@ -352,11 +374,15 @@ inline bool new_position_pass(const double* m, const double* increment, double s
                          n);
 }
 /// For M = diag(m), R' = diag(r): F_i = r_i s_i, p_i = p⁻_i − c F_i, v_i = p_i / m_i (p_i for
-/// `unit_mass`) and (unless `w` is null) w_i = F_i / m_i; returns whether every v_i is finite.
-inline bool new_momentum_pass(const double* r, const double* sum, const double* p_minus, double c,
-                              const double* m, bool unit_mass, double* force, double* p, double* v,
-                              double* w, Eigen::Index n) {
-  return FRACVI_DISPATCH(new_momentum, r, sum, p_minus, c, m, unit_mass, force, p, v, w, n);
+/// `unit_mass`), unless `w` is null w_i = F_i / m_i (not written for `unit_mass`), and with
+/// `with_dots` F·v and F·M⁻¹F in dot_pass's order (n ≥ kVectorPassesFrom; smaller systems keep
+/// Eigen's sums).
+inline MomentumPass new_momentum_pass(const double* r, const double* sum, const double* p_minus,
+                                      double c, const double* m, bool unit_mass, double* force,
+                                      double* p, double* v, double* w, bool with_dots,
+                                      Eigen::Index n) {
+  return FRACVI_DISPATCH(new_momentum, r, sum, p_minus, c, m, unit_mass, force, p, v, w, with_dots,
+                         n);
 }
 
 #undef FRACVI_DISPATCH
