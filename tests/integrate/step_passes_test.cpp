@@ -56,7 +56,7 @@ TEST(StepPasses, NewPositionIsTheSeparatePassesBitForBit) {
         // Fused: a term left out is a zero vector.
         const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n);
         Eigen::VectorXd p_minus(n), next(n), tilde(n);
-        ASSERT_TRUE(new_position_pass(m.data(), dx.data(), s, p_plus.data(), a.data(),
+        ASSERT_TRUE(new_position_pass(m.data(), unit, dx.data(), s, p_plus.data(), a.data(),
                                       sx ? x0.data() : zero.data(), t, sv ? v0.data() : zero.data(),
                                       p_minus.data(), next.data(), tilde.data(), n));
         EXPECT_TRUE(bitwise_equal(p_minus, p_minus_ref)) << "n = " << n;
@@ -64,8 +64,9 @@ TEST(StepPasses, NewPositionIsTheSeparatePassesBitForBit) {
         EXPECT_TRUE(bitwise_equal(tilde, tilde_ref)) << "n = " << n << ", shift " << shift;
         // Without x̃ (no history): the other outputs alike, x̃ untouched.
         Eigen::VectorXd untouched = Eigen::VectorXd::Constant(n, 5.0);
-        ASSERT_TRUE(new_position_pass(m.data(), dx.data(), s, p_plus.data(), a.data(), x0.data(), t,
-                                      v0.data(), p_minus.data(), next.data(), nullptr, n));
+        ASSERT_TRUE(new_position_pass(m.data(), unit, dx.data(), s, p_plus.data(), a.data(),
+                                      x0.data(), t, v0.data(), p_minus.data(), next.data(), nullptr,
+                                      n));
         EXPECT_TRUE(bitwise_equal(p_minus, p_minus_ref));
         EXPECT_TRUE(bitwise_equal(next, next_ref));
         EXPECT_TRUE((untouched.array() == 5.0).all());
@@ -130,12 +131,15 @@ TEST(StepPasses, NonFiniteValuesAreReported) {
   std::mt19937 rng(3);
   for (const Eigen::Index n : kSizes) {
     const Eigen::VectorXd m = random_vector(n, rng, 0.5, 3.0), x = random_vector(n, rng);
-    Eigen::VectorXd dx = random_vector(n, rng), out1(n), out2(n), out3(n), out4(n);
-    EXPECT_TRUE(new_position_pass(m.data(), dx.data(), 2.0, x.data(), x.data(), x.data(), 0.1,
-                                  x.data(), out1.data(), out2.data(), out3.data(), n));
-    dx[n - 1] = kInf;  // the last element: the simd loop's remainder above kVectorPassesFrom
-    EXPECT_FALSE(new_position_pass(m.data(), dx.data(), 2.0, x.data(), x.data(), x.data(), 0.1,
-                                   x.data(), out1.data(), out2.data(), out3.data(), n));
+    for (const bool unit : {true, false}) {
+      Eigen::VectorXd dx = random_vector(n, rng), out1(n), out2(n), out3(n);
+      EXPECT_TRUE(new_position_pass(m.data(), unit, dx.data(), 2.0, x.data(), x.data(), x.data(),
+                                    0.1, x.data(), out1.data(), out2.data(), out3.data(), n));
+      dx[n - 1] = kInf;  // the last element: the simd loop's remainder above kVectorPassesFrom
+      EXPECT_FALSE(new_position_pass(m.data(), unit, dx.data(), 2.0, x.data(), x.data(), x.data(),
+                                     0.1, x.data(), out1.data(), out2.data(), out3.data(), n));
+    }
+    Eigen::VectorXd out1(n), out2(n), out3(n), out4(n);
     Eigen::VectorXd sum = random_vector(n, rng);
     for (const bool unit : {true, false}) {
       sum[0] = 1.0;

@@ -65,6 +65,8 @@ class FastHistory final : public History {
 
   void push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) override;
   void sum(Eigen::Ref<Eigen::VectorXd> out) const override;
+  /// push() forms the sum here (never the second thread).
+  [[nodiscard]] const double* kept_sum() const override { return sum_.data(); }
   void clear() override;
   [[nodiscard]] std::size_t size() const override { return size_; }
   [[nodiscard]] std::size_t capacity() const override { return capacity_; }

@@ -52,6 +52,9 @@ class History {
   /// out = Σ_{m=0}^{k} c_m x̃_{k−m} for the last pushed index k (out has size d).
   /// Precondition: size() ≥ 1.
   virtual void sum(Eigen::Ref<Eigen::VectorXd> out) const = 0;
+  /// The sum of the last push where the history keeps it (what sum() copies out), else null: a
+  /// step that only reads the sum can read it there. Valid until the next push() or clear().
+  [[nodiscard]] virtual const double* kept_sum() const { return nullptr; }
   /// Forgets all pushed values (capacity is kept).
   virtual void clear() = 0;
 

@@ -179,11 +179,12 @@ FRACVI_PASS void shifted(const double* x, const double* x0, double t, const doub
 }
 
 // The rest of a step after its increment, for a diagonal M = diag(m) (the chains'):
-// p⁻_i = (m_i Δ_i)·s − p⁺_i, x_next_i = a_i + Δ_i and, with kTilde, x̃_i = (x_next_i − x0_i) −
+// p⁻_i = (m_i Δ_i)·s − p⁺_i (Δ_i·s − p⁺_i with kUnitMass: 1·Δ_i is Δ_i), x_next_i = a_i + Δ_i
+// and, with kTilde, x̃_i = (x_next_i − x0_i) −
 // t v0_i — the roundings of M Δ, then of scale_and_subtract, add_and_check and shifted (a zero x0
 // or v0 stands for a term left out: x − 0 and y − t·0 are x and y). Returns whether every
 // x_next_i is finite.
-template <bool kSimd, bool kTilde>
+template <bool kSimd, bool kUnitMass, bool kTilde>
 [[gnu::always_inline]] inline bool new_position_loop(const double* m, const double* increment,
                                                      double s, const double* p_plus,
                                                      const double* a, const double* x0, double t,
@@ -192,7 +193,7 @@ template <bool kSimd, bool kTilde>
   double zero = 0.0;
 #pragma omp simd if (simd : kSimd) reduction(+ : zero)
   for (Eigen::Index i = 0; i < n; ++i) {
-    p_minus[i] = (m[i] * increment[i]) * s - p_plus[i];
+    p_minus[i] = (kUnitMass ? increment[i] : m[i] * increment[i]) * s - p_plus[i];
     const double value = a[i] + increment[i];
     next[i] = value;
     zero += 0.0 * value;
@@ -201,14 +202,18 @@ template <bool kSimd, bool kTilde>
   return zero == 0.0;
 }
 
-FRACVI_PASS bool new_position(const double* m, const double* increment, double s,
+FRACVI_PASS bool new_position(const double* m, bool unit_mass, const double* increment, double s,
                               const double* p_plus, const double* a, const double* x0, double t,
                               const double* v0, double* p_minus, double* next, double* tilde,
                               Eigen::Index n) {
-  return tilde != nullptr ? new_position_loop<kSimd, true>(m, increment, s, p_plus, a, x0, t, v0,
-                                                           p_minus, next, tilde, n)
-                          : new_position_loop<kSimd, false>(m, increment, s, p_plus, a, x0, t, v0,
-                                                            p_minus, next, tilde, n);
+#define FRACVI_POSITION_LOOP(unit, with_tilde)                                                     \
+  new_position_loop<kSimd, unit, with_tilde>(m, increment, s, p_plus, a, x0, t, v0, p_minus, next, \
+                                             tilde, n)
+  if (unit_mass) {
+    return tilde != nullptr ? FRACVI_POSITION_LOOP(true, true) : FRACVI_POSITION_LOOP(true, false);
+  }
+  return tilde != nullptr ? FRACVI_POSITION_LOOP(false, true) : FRACVI_POSITION_LOOP(false, false);
+#undef FRACVI_POSITION_LOOP
 }
 
 // The damping force and the new momentum and velocity, for diagonal M = diag(m) and R' = diag(r):
@@ -299,9 +304,9 @@ void scale_and_subtract(double s, const double* b, double* a, Eigen::Index n);
 void subtract_scaled(const double* a, double s, const double* b, double* out, Eigen::Index n);
 void shifted(const double* x, const double* x0, double t, const double* v0, double* out,
              Eigen::Index n);
-bool new_position(const double* m, const double* increment, double s, const double* p_plus,
-                  const double* a, const double* x0, double t, const double* v0, double* p_minus,
-                  double* next, double* tilde, Eigen::Index n);
+bool new_position(const double* m, bool unit_mass, const double* increment, double s,
+                  const double* p_plus, const double* a, const double* x0, double t,
+                  const double* v0, double* p_minus, double* next, double* tilde, Eigen::Index n);
 MomentumPass new_momentum(const double* r, const double* sum, const double* p_minus, double c,
                           const double* m, bool unit_mass, double* force, double* p, double* v,
                           double* w, bool with_dots, Eigen::Index n);
@@ -365,13 +370,14 @@ inline void shifted_pass(const double* x, const double* x0, double t, const doub
   FRACVI_DISPATCH(shifted, x, x0, t, v0, out, n);
 }
 /// For M = diag(m): p⁻_i = (m_i Δ_i) s − p⁺_i, x_next_i = a_i + Δ_i and (unless `tilde` is
-/// null) x̃_i = (x_next_i − x0_i) − t v0_i; returns whether every x_next_i is finite.
-inline bool new_position_pass(const double* m, const double* increment, double s,
+/// null) x̃_i = (x_next_i − x0_i) − t v0_i; `unit_mass` (m = 1) skips the products by 1. Returns
+/// whether every x_next_i is finite.
+inline bool new_position_pass(const double* m, bool unit_mass, const double* increment, double s,
                               const double* p_plus, const double* a, const double* x0, double t,
                               const double* v0, double* p_minus, double* next, double* tilde,
                               Eigen::Index n) {
-  return FRACVI_DISPATCH(new_position, m, increment, s, p_plus, a, x0, t, v0, p_minus, next, tilde,
-                         n);
+  return FRACVI_DISPATCH(new_position, m, unit_mass, increment, s, p_plus, a, x0, t, v0, p_minus,
+                         next, tilde, n);
 }
 /// For M = diag(m), R' = diag(r): F_i = r_i s_i, p_i = p⁻_i − c F_i, v_i = p_i / m_i (p_i for
 /// `unit_mass`), unless `w` is null w_i = F_i / m_i (not written for `unit_mass`), and with
