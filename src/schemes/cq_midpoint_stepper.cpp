@@ -232,7 +232,7 @@ Status CqMidpointStepper::advance() {
     momentum = new_momentum_pass(
         force_matrix_.stored_diagonal()->data(), damping_sum, p_minus_.data(), 0.5 * h_,
         mass_solver_.diagonal()->data(), mass_solver_.unit_mass(), force_next_.data(), p_.data(),
-        v_next_.data(), diagnostics_ ? w_.data() : nullptr, vector_dots, d_);
+        v_next_.data(), diagnostics_ && !vector_dots ? w_.data() : nullptr, vector_dots, d_);
   } else {
     if (damped_) force_matrix_.multiply(sum_, force_next_);
     subtract_scaled_pass(p_minus_.data(), 0.5 * h_, force_next_.data(), p_.data(), d_);

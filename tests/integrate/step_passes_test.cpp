@@ -104,7 +104,7 @@ TEST(StepPasses, NewMomentumIsTheSeparatePassesBitForBit) {
           Eigen::VectorXd force(n), p(n), v(n), w = Eigen::VectorXd::Constant(n, 5.0);
           const MomentumPass pass = new_momentum_pass(
               r.data(), sum.data(), p_minus.data(), c, m.data(), unit, force.data(), p.data(),
-              v.data(), with_w ? w.data() : nullptr, with_dots && (unit || with_w), n);
+              v.data(), with_w ? w.data() : nullptr, with_dots, n);
           ASSERT_TRUE(pass.finite);
           EXPECT_TRUE(bitwise_equal(force, force_ref)) << "n = " << n << ", unit " << unit;
           EXPECT_TRUE(bitwise_equal(p, p_ref));
@@ -115,7 +115,7 @@ TEST(StepPasses, NewMomentumIsTheSeparatePassesBitForBit) {
           } else {
             EXPECT_TRUE((w.array() == 5.0).all());
           }
-          if (with_dots && (unit || with_w)) {
+          if (with_dots) {  // with or without w stored
             EXPECT_EQ(pass.fv, fv_ref) << "n = " << n << ", unit " << unit;
             EXPECT_EQ(pass.fw, fw_ref) << "n = " << n << ", unit " << unit;
           }

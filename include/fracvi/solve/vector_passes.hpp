@@ -218,10 +218,10 @@ FRACVI_PASS bool new_position(const double* m, bool unit_mass, const double* inc
 
 // The damping force and the new momentum and velocity, for diagonal M = diag(m) and R' = diag(r):
 // F_i = r_i s_i, p_i = p⁻_i − c F_i, v_i = p_i / m_i (p_i itself with kUnitMass, M = I), with
-// kQuotient w_i = F_i / m_i — the roundings of R' s, subtract_scaled and the mass solver's
-// quotients — and with kDots the energy account's F·v and F·M⁻¹F (F·F for M = I, F·w else),
-// summed as dot's simd reduction sums them (tested bit for bit, tests/integrate/step_passes_test).
-template <bool kSimd, bool kUnitMass, bool kQuotient, bool kDots>
+// kStoreQuotient w_i = F_i / m_i — the roundings of R' s, subtract_scaled and the mass solver's
+// quotients — and with kDots the energy account's F·v and F·M⁻¹F (F·F for M = I), summed as dot's
+// simd reduction sums them (tested bit for bit, tests/integrate/step_passes_test).
+template <bool kSimd, bool kUnitMass, bool kStoreQuotient, bool kDots>
 [[gnu::always_inline]] inline MomentumPass new_momentum_loop(const double* r, const double* sum,
                                                              const double* p_minus, double c,
                                                              const double* m, double* force,
@@ -237,11 +237,8 @@ template <bool kSimd, bool kUnitMass, bool kQuotient, bool kDots>
     const double velocity = kUnitMass ? momentum : momentum / m[i];
     v[i] = velocity;
     zero += 0.0 * velocity;
-    double quotient = f;
-    if constexpr (kQuotient) {
-      quotient = f / m[i];
-      w[i] = quotient;
-    }
+    const double quotient = kUnitMass ? f : f / m[i];  // M⁻¹F (unused unless stored or summed)
+    if constexpr (kStoreQuotient) w[i] = quotient;
     if constexpr (kDots) {
       fv += f * velocity;
       fw += f * quotient;
@@ -260,7 +257,10 @@ FRACVI_PASS MomentumPass new_momentum(const double* r, const double* sum, const 
     return with_dots ? FRACVI_MOMENTUM_LOOP(true, false, true)
                      : FRACVI_MOMENTUM_LOOP(true, false, false);
   }
-  if (w == nullptr) return FRACVI_MOMENTUM_LOOP(false, false, false);
+  if (w == nullptr) {
+    return with_dots ? FRACVI_MOMENTUM_LOOP(false, false, true)
+                     : FRACVI_MOMENTUM_LOOP(false, false, false);
+  }
   return with_dots ? FRACVI_MOMENTUM_LOOP(false, true, true)
                    : FRACVI_MOMENTUM_LOOP(false, true, false);
 #undef FRACVI_MOMENTUM_LOOP
