@@ -323,6 +323,8 @@ std::size_t fast_history_fit_lag(std::size_t capacity) {
 // the spin. Neither side allocates after construction.
 class FastHistory::AheadThread {
  public:
+  using Clock = std::chrono::steady_clock;
+
   explicit AheadThread(FastHistory& history) : history_(history), worker_([this] { serve(); }) {}
   ~AheadThread() {
     finish();
@@ -334,17 +336,23 @@ class FastHistory::AheadThread {
   AheadThread& operator=(const AheadThread&) = delete;
 
   /// Starts the next push's recursions (x̃ from ring column `leaving_slot`) and older window (from
-  /// column `first`).
-  void post(Eigen::Index leaving_slot, Eigen::Index first, Eigen::Index copy_slot) {
+  /// column `first`) for rows [0, rows); `timed`: the job records its start and finish.
+  void post(Eigen::Index leaving_slot, Eigen::Index first, Eigen::Index copy_slot,
+            Eigen::Index rows, bool timed) {
     slot_ = leaving_slot;
     first_ = first;
     copy_slot_ = copy_slot;
+    rows_ = rows;
+    timed_ = timed;
     caller_cpu_ = internal::current_cpu();
     job_.store(kWork, std::memory_order_release);
     job_.notify_one();
   }
   /// Returns once the job posted last (if any) has finished; its writes are then visible.
   void finish() const { await_other_than(kWork); }
+  /// The last timed job's start and finish (read after finish()).
+  [[nodiscard]] Clock::time_point started() const { return started_; }
+  [[nodiscard]] Clock::time_point finished() const { return finished_; }
 
  private:
   static constexpr int kIdle = 0, kWork = 1, kStop = 2;
@@ -379,7 +387,9 @@ class FastHistory::AheadThread {
     for (;;) {
       if (await_other_than(kIdle) == kStop) return;
       const int caller_cpu = caller_cpu_;  // posted with the job (the next post may change it)
-      history_.run_ahead(slot_, first_, copy_slot_);
+      if (timed_) started_ = Clock::now();
+      history_.run_ahead(0, rows_, slot_, first_, copy_slot_);
+      if (timed_) finished_ = Clock::now();
       const bool shared = movable_ && caller_cpu >= 0 && internal::current_cpu() == caller_cpu;
       job_.store(kIdle, std::memory_order_release);
       job_.notify_one();
@@ -390,9 +400,11 @@ class FastHistory::AheadThread {
   }
 
   FastHistory& history_;
-  Eigen::Index slot_ = 0, first_ = 0, copy_slot_ = 0;
-  int caller_cpu_ = -1;  // where the caller posted the job from
-  bool movable_ = true;  // the worker's thread only
+  Eigen::Index slot_ = 0, first_ = 0, copy_slot_ = 0, rows_ = 0;
+  bool timed_ = false;
+  Clock::time_point started_{}, finished_{};  // written by the worker, read after finish()
+  int caller_cpu_ = -1;                       // where the caller posted the job from
+  bool movable_ = true;                       // the worker's thread only
   mutable std::atomic<int> job_{kIdle};
   std::thread worker_;  // last: it starts serving once the members above exist
 };
@@ -466,11 +478,13 @@ internal::FastHistoryBlock FastHistory::block(Eigen::Index b, Eigen::Index n, Ei
           head_reversed_.data()};
 }
 
-void FastHistory::run_ahead(Eigen::Index leaving_slot, Eigen::Index first, Eigen::Index copy_slot) {
-  const Eigen::Index d = ring_.rows(), terms = state_.cols();
-  for (Eigen::Index b = 0; b < d; b += kBlock) {
-    const Eigen::Index n = std::min(kBlock, d - b);
-    // The copy of the last x̃ in the ring's second half, which the caller left to this thread.
+void FastHistory::run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot,
+                            Eigen::Index first, Eigen::Index copy_slot) {
+  const Eigen::Index terms = state_.cols();
+  for (Eigen::Index b = lo; b < hi; b += kBlock) {
+    const Eigen::Index n = std::min(kBlock, hi - b);
+    // The copy of the last x̃ in the ring's second half, which push() left to the run-ahead (the
+    // second thread's rows or the caller's share).
     internal::copy_elements(ring_.col(copy_slot).data() + b,
                             ring_.col(copy_slot + window_).data() + b, n);
     const internal::FastHistoryBlock rows = block(b, n, terms, leaving_slot, first, nullptr, true);
@@ -512,9 +526,19 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   if (size_ == n0) team_.restart();
   // Timed from push to push (TeamChooser::next_by_period): the second thread's work overlaps the
   // caller's step, which the push alone would not show.
-  const int threads =
-      team_.measuring() ? team_.next_by_period(std::chrono::steady_clock::now()) : team_.next();
+  using Clock = std::chrono::steady_clock;
+  const bool timed_job = ahead_ && timed_ahead_;
+  const Clock::time_point arrival =
+      team_.measuring() || timed_job ? Clock::now() : Clock::time_point{};
+  const int threads = team_.measuring() ? team_.next_by_period(arrival) : team_.next();
   finish_ahead();
+  if (timed_job) {
+    // The thread's share of this push against the caller's arrival (RunAheadBalance).
+    const Clock::time_point finished = ahead_thread_->finished();
+    balance_.record(std::chrono::duration<double>(finished - ahead_thread_->started()).count(),
+                    std::chrono::duration<double>(arrival - finished).count());
+  }
+  timed_ahead_ = false;
   const bool run_recursions = recurse && !ahead_;
   // When the next push runs ahead, x̃_k goes into the ring's first half only, and the second
   // thread writes its copy in the second half (which keeps the window's columns contiguous) at the
@@ -540,8 +564,14 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   ahead_ = false;
   ++size_;
   if (post_next) {
-    ahead_thread_->post(static_cast<Eigen::Index>(size_ % n0),
-                        static_cast<Eigen::Index>((size_ + 1) % n0), slot);
+    // The thread takes rows [0, share) of the next push; the caller runs the rest now, while the
+    // thread runs its share, and then returns to its step (RunAheadBalance).
+    const auto next_slot = static_cast<Eigen::Index>(size_ % n0);
+    const auto next_first = static_cast<Eigen::Index>((size_ + 1) % n0);
+    const Eigen::Index share = balance_.rows();
+    timed_ahead_ = balance_.balanced();
+    ahead_thread_->post(next_slot, next_first, slot, share, timed_ahead_);
+    run_ahead(share, d, next_slot, next_first, slot);
     ahead_ = true;
   }
 }
@@ -559,6 +589,7 @@ void FastHistory::configure_threads(int threads) {
   // A team of two runs ahead instead of splitting the rows: it pays from kRunAheadWork.
   if (team == 1 && internal::team_size(threads, work, kRunAheadWork) == 2) team = 2;
   team_.configure(threads, team);
+  configure_balance();
   if (team_.team() == 2) {
     if (!ahead_thread_) ahead_thread_ = std::make_unique<AheadThread>(*this);
   } else {
@@ -569,6 +600,23 @@ void FastHistory::configure_threads(int threads) {
 
 void FastHistory::set_threads(int threads) {
   configure_threads(threads);
+}
+
+void FastHistory::set_run_ahead_rows(Eigen::Index rows) {
+  if (rows < 0) {
+    throw std::invalid_argument("FastHistory: run-ahead rows = " + std::to_string(rows) +
+                                " must be >= 0 (0: balanced by timing)");
+  }
+  finish_ahead();
+  run_ahead_rows_ = rows;
+  configure_balance();
+}
+
+void FastHistory::configure_balance() {
+  const Eigen::Index d = ring_.rows();
+  balance_.configure(d, run_ahead_rows_ == 0 && d >= kBalancedRunAheadFrom,
+                     run_ahead_rows_ == 0 ? d : run_ahead_rows_);
+  timed_ahead_ = false;  // a job in flight was timed for the former split
 }
 
 void FastHistory::visit_state(StateArchive& archive) {
@@ -610,6 +658,7 @@ void FastHistory::clear() {
   sum_.setZero();
   size_ = 0;
   ahead_ = false;
+  timed_ahead_ = false;
 }
 
 bool fast_history_pays(std::size_t capacity, Eigen::Index dimension) {

@@ -10,14 +10,17 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstddef>
 #include <random>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "fracvi/core/state_archive.hpp"
 #include "fracvi/fractional/runge_kutta_cq.hpp"
 #include "fracvi/internal/cpu_placement.hpp"
+#include "fracvi/internal/run_ahead_balance.hpp"
 #include "fracvi/internal/team_chooser.hpp"
 #include "fracvi/memory/block_history.hpp"
 #include "fracvi/memory/fast_history.hpp"
@@ -219,6 +222,142 @@ TEST(TeamChooser, FastHistoryRunAheadSurvivesCheckpointsAndClear) {
   Eigen::MatrixXd again(d, pushes);
   run(two, 0, pushes, again);
   EXPECT_TRUE(bitwise_equal(again, reference)) << "after clear()";
+}
+
+// The split of the next push between the run-ahead thread and the caller
+// (internal/run_ahead_balance.hpp), steered by synthetic times: a caller whose step takes C and
+// whose share of r rows (of d) costs c per row arrives after C + (d − r)c, the thread finishes
+// after r·c. Balance: r = (C/c + d)/2.
+struct SimulatedStep {
+  double caller_seconds, per_row;
+  Eigen::Index rows;
+  // (the thread's job time, the caller's arrival minus the thread's finish) for a share.
+  [[nodiscard]] std::pair<double, double> times(Eigen::Index share) const {
+    const double job = per_row * static_cast<double>(share);
+    const double arrival = caller_seconds + per_row * static_cast<double>(rows - share);
+    return {job, arrival - job};
+  }
+};
+
+TEST(RunAheadBalance, ConvergesToTheBalancedSplitAndStaysThere) {
+  constexpr Eigen::Index kGrain = internal::RunAheadBalance::kGrain;
+  const SimulatedStep step{50e-6, 20e-9, 10000};  // balance at (2500 + 10000)/2 = 6250 rows
+  internal::RunAheadBalance balance;
+  balance.configure(step.rows, true, 0);
+  ASSERT_TRUE(balance.balanced());
+  EXPECT_EQ(balance.rows(), step.rows) << "starts with every row on the thread";
+  int steps = 0;
+  for (; steps < 100 && std::abs(balance.rows() - 6250) > kGrain; ++steps) {
+    const auto [job, slack] = step.times(balance.rows());
+    balance.record(job, slack);
+    EXPECT_EQ(balance.rows() % kGrain, 0);
+  }
+  EXPECT_LE(steps, 12) << "half-way steps, at most d/8 each";
+  for (int i = 0; i < 50; ++i) {
+    const auto [job, slack] = step.times(balance.rows());
+    balance.record(job, slack);
+    ASSERT_LE(std::abs(balance.rows() - 6250), kGrain) << "step " << i << " after convergence";
+  }
+  // One disturbed step (the caller preempted for a second) moves the split by at most d/8.
+  const Eigen::Index before = balance.rows();
+  balance.record(step.times(before).first, 1.0);
+  EXPECT_LE(balance.rows() - before, step.rows / 8 + kGrain);
+  EXPECT_LT(balance.rows(), step.rows) << "not every row on the thread after one step";
+}
+
+TEST(RunAheadBalance, ALongCallerStepLeavesEveryRowToTheThread) {
+  // C/c = 30 000 > d: the thread's whole share ends before the caller arrives.
+  const SimulatedStep step{600e-6, 20e-9, 10000};
+  internal::RunAheadBalance balance;
+  balance.configure(step.rows, true, 0);
+  for (int i = 0; i < 30; ++i) {
+    const auto [job, slack] = step.times(balance.rows());
+    balance.record(job, slack);
+    ASSERT_EQ(balance.rows(), step.rows);
+  }
+  // A thread 1000 times slower (a shared core): balance at (C/c + d)/1001 ≈ 10 rows, so the caller
+  // takes nearly every row (the rule's half steps assume equal speeds and stop within a step of
+  // two grains here).
+  const SimulatedStep slow{10e-6, 20e-9, 10000};
+  for (int i = 0; i < 60; ++i) {
+    const auto [job, slack] = slow.times(balance.rows());
+    balance.record(1000.0 * job, slack - 999.0 * job);
+  }
+  EXPECT_LE(balance.rows(), 2 * internal::RunAheadBalance::kGrain);
+}
+
+TEST(RunAheadBalance, FixedSharesAndSmallSystemsAreNotBalanced) {
+  internal::RunAheadBalance balance;
+  balance.configure(10000, false, 3000);
+  EXPECT_FALSE(balance.balanced());
+  balance.record(1e-3, 1.0);
+  EXPECT_EQ(balance.rows(), 3000);
+  balance.configure(10000, false, 20000);
+  EXPECT_EQ(balance.rows(), 10000) << "clamped to the rows there are";
+  balance.configure(100, true, 0);  // fewer than two grains: nothing to balance
+  EXPECT_FALSE(balance.balanced());
+  EXPECT_EQ(balance.rows(), 0) << "unbalanced with share 0 as given";
+  balance.configure(100, true, 100);
+  EXPECT_EQ(balance.rows(), 100);
+  // Times that say nothing leave the split alone.
+  balance.configure(10000, true, 0);
+  balance.record(0.0, -1.0);
+  balance.record(std::nan(""), -1.0);
+  balance.record(1e-4, std::nan(""));
+  EXPECT_EQ(balance.rows(), 10000);
+}
+
+// Any split of a push between the run-ahead thread and the caller gives the one-thread sums bit
+// for bit — shares that are not whole grains, that change from push to push, none for the caller,
+// and the balanced default (back-to-back pushes: the caller arrives early and takes rows) — and a
+// checkpoint taken with a split share restores to the same continuation.
+TEST(TeamChooser, FastHistoryRunAheadSplitsDoNotChangeTheSums) {
+  const Eigen::Index d = 3000;
+  const int pushes = 60, saved_after = 37;
+  const Eigen::MatrixXd xs = rough_input(d, pushes);
+  Eigen::MatrixXd reference(d, pushes);
+  Eigen::VectorXd s(d);
+  {
+    FastHistory one(1.5, d, 1 << 12);
+    one.set_threads(1);
+    for (int k = 0; k < pushes; ++k) {
+      one.push(xs.col(k));
+      one.sum(s);
+      reference.col(k) = s;
+    }
+  }
+  const std::vector<Eigen::Index> fixed = {1, 64, 1000, 2999, 3000, 5000};
+  for (const Eigen::Index rows : {Eigen::Index{-1}, Eigen::Index{0}, Eigen::Index{1},
+                                  Eigen::Index{777}, Eigen::Index{2999}}) {
+    FastHistory two(1.5, d, 1 << 12);
+    two.set_threads(2);
+    two.set_run_ahead_rows(std::max<Eigen::Index>(rows, 0));
+    Eigen::MatrixXd out(d, pushes);
+    StateWriter writer;
+    for (int k = 0; k < pushes; ++k) {
+      if (rows < 0) two.set_run_ahead_rows(fixed[static_cast<std::size_t>(k) % fixed.size()]);
+      two.push(xs.col(k));
+      two.sum(s);
+      out.col(k) = s;
+      if (k + 1 == saved_after) two.visit_state(writer);
+    }
+    EXPECT_TRUE(bitwise_equal(out, reference)) << "run-ahead rows " << rows;
+    EXPECT_GE(two.run_ahead_rows(), 1);
+    EXPECT_LE(two.run_ahead_rows(), d);
+    FastHistory restored(1.5, d, 1 << 12);
+    restored.set_threads(2);
+    StateReader reader(writer.bytes(), "test state");
+    restored.visit_state(reader);
+    reader.finish();
+    for (int k = saved_after; k < pushes; ++k) {
+      restored.push(xs.col(k));
+      restored.sum(s);
+      out.col(k) = s;
+    }
+    EXPECT_TRUE(bitwise_equal(out, reference)) << "restored, run-ahead rows " << rows;
+  }
+  FastHistory history(1.5, d, 1 << 12);
+  EXPECT_THROW(history.set_run_ahead_rows(-1), std::invalid_argument);
 }
 
 TEST(TeamChooser, FastBlockHistorySumsDoNotDependOnTheChoice) {

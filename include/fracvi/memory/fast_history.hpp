@@ -26,8 +26,12 @@
 // addition: nearly the whole history leaves the caller's path instead of being split with it (the
 // rest of a step is serial: at d = 10^4 a split history allowed ≤ 1.3×, bench/RESULTS.md). The
 // caller then writes x̃_k into the ring once, and the second thread makes the second-half copy:
-// what crosses between the cores on the caller's path is only x̃_k and the tail. The operations
-// and their order are those of the one-thread push, so the sums are bit for bit the same.
+// what crosses between the cores on the caller's path is only x̃_k and the tail. For a large system
+// the second thread takes only the first rows of that work, and the caller runs the rest right
+// after posting them, at the same time, before it returns to its step: at d = 10^4 the whole
+// history on the second thread outlasted the caller's step (its 2 MB of state comes from L3), and
+// the split is balanced by timing (internal/run_ahead_balance.hpp). The operations and their order
+// are those of the one-thread push in every row, so the sums are bit for bit the same.
 #pragma once
 
 #include <Eigen/Dense>
@@ -36,6 +40,7 @@
 #include <string_view>
 
 #include "fracvi/fractional/exponential_fit.hpp"
+#include "fracvi/internal/run_ahead_balance.hpp"
 #include "fracvi/internal/team_chooser.hpp"
 #include "fracvi/memory/history.hpp"
 
@@ -86,6 +91,13 @@ class FastHistory final : public History {
   /// everything (a parallel region costs about a microsecond) — but a team of two, the run-ahead
   /// thread, from kRunAheadWork.
   void set_threads(int threads) override;
+  /// Rows [0, rows) of each next push go to the run-ahead thread of a team of two, and the caller
+  /// runs the rest right after posting them (fast_history.cpp). 0 (the default): balanced by timing
+  /// (internal/run_ahead_balance.hpp) from kBalancedRunAheadFrom degrees of freedom, all rows to
+  /// the thread below. The split never changes a result. Throws std::invalid_argument for rows < 0.
+  void set_run_ahead_rows(Eigen::Index rows);
+  /// The run-ahead thread's share of the next push (rows [0, run_ahead_rows())).
+  [[nodiscard]] Eigen::Index run_ahead_rows() const { return balance_.rows(); }
   /// The window (ring), the K recursions Y_j, the tail and the last sum.
   void visit_state(StateArchive& archive) override;
 
@@ -112,7 +124,10 @@ class FastHistory final : public History {
   Eigen::VectorXd tail_;
   Eigen::VectorXd sum_;  // the whole sum after the last push (d)
   std::size_t size_ = 0;
-  internal::TeamChooser team_;  // threads per push: measured (threads = 0) or as set
+  internal::TeamChooser team_;         // threads per push: measured (threads = 0) or as set
+  internal::RunAheadBalance balance_;  // the run-ahead thread's rows and the caller's
+  Eigen::Index run_ahead_rows_ = 0;    // as set (0: balanced)
+  bool timed_ahead_ = false;           // the job in flight records its times for balance_
   // Y_j and tail_ already hold the next push's recursions and window but for its last addition
   // (posted to the second thread, or restored from a checkpoint taken while they were).
   bool ahead_ = false;
@@ -120,16 +135,18 @@ class FastHistory final : public History {
   std::unique_ptr<AheadThread> ahead_thread_;
 
   void configure_threads(int threads);
+  void configure_balance();
   // Rows [b, b + n) of a push: `terms` recursions (0: none) with x̃ from ring column `slot`, the
   // window from column `first`, the new value `entering` (null: the recursions alone), written
   // into both ring columns with `copy`, into the first only without (the second thread copies).
   internal::FastHistoryBlock block(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
                                    Eigen::Index slot, Eigen::Index first, const double* entering,
                                    bool copy);
-  // The next push's recursions with x̃ from ring column `leaving_slot`, and its tail plus the
-  // window's terms before the last addition, from column `first` on, into tail_ (all rows); first
-  // the copy of ring column `copy_slot` (the x̃ just pushed) into its second-half column.
-  void run_ahead(Eigen::Index leaving_slot, Eigen::Index first, Eigen::Index copy_slot);
+  // Rows [lo, hi) of the next push's recursions with x̃ from ring column `leaving_slot`, and its
+  // tail plus the window's terms before the last addition, from column `first` on, into tail_;
+  // first the copy of ring column `copy_slot` (the x̃ just pushed) into its second-half column.
+  void run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot, Eigen::Index first,
+                 Eigen::Index copy_slot);
   void finish_ahead() const;  // waits for recursions in flight
 };
 
@@ -145,6 +162,9 @@ inline constexpr Eigen::Index kParallelWork = Eigen::Index{1} << 18;
 /// run 12.4), d = 1000 15.4–16.4 → 10.2–14.9; whether it does on a given machine and load,
 /// TeamChooser measures (threads = 0).
 inline constexpr Eigen::Index kRunAheadWork = Eigen::Index{1} << 15;
+/// Degrees of freedom from which a team of two balances the next push's rows between its threads
+/// by timing (set_run_ahead_rows(0)); below, the run-ahead thread takes them all.
+inline constexpr Eigen::Index kBalancedRunAheadFrom = 2048;
 
 /// The max_lag used by FastHistory(order, …) for a capacity: the next power of two ≥
 /// capacity − 1 (at least 1), so that runs of similar length share one cached fit. A fit for a
