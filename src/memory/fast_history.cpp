@@ -25,22 +25,28 @@ namespace internal {
 
 struct FastHistoryBlock {
   Eigen::Index rows, terms, state_stride, window, ring_stride;
+  // The ring column of x̃_{k−n0+1}, the window's oldest value; the window's value c (oldest first)
+  // is in column (first + c) mod n0 (window_column()).
+  Eigen::Index first;
   double* state;
   double* tail;
   double* sum;
-  const double* leaving;       // x̃_{k−n0}: ring column `slot`, overwritten by x̃_k below
-  const double* entering;      // x̃_k
-  double* slot;                // its two ring columns
-  double* slot_copy;           // null: the run-ahead thread writes the copy (FastHistory::push)
-  const double* window_first;  // ring column of x̃_{k−n0+1}; the window's columns follow it
-  // The window's last group's first three values x̃_{k−3} … x̃_{k−1} (when the group has four),
-  // in the ring's first half: the columns the caller wrote, still in its cache, where the
-  // window's own columns may be the copies that the second thread wrote (FastHistory::push).
-  const double* newest_older[3];
+  const double* leaving;   // x̃_{k−n0}: ring column `slot`, overwritten by x̃_k below
+  const double* entering;  // x̃_k
+  double* slot;            // its ring column
+  const double* ring;      // the ring's first column (at this block's first row)
   const double* decay;
   const double* weights;
   const double* head_reversed;
 };
+
+// The ring column of the window's value c (0 = the oldest): the ring holds each value once, in
+// column j mod n0 for x̃_j, so the window wraps around its end.
+inline const double* window_column(const FastHistoryBlock& blk, Eigen::Index c) {
+  Eigen::Index column = blk.first + c;
+  if (column >= blk.window) column -= blk.window;
+  return blk.ring + column * blk.ring_stride;
+}
 
 }  // namespace internal
 
@@ -127,21 +133,20 @@ FRACVI_HOT_KERNEL
 void older_window_block(const internal::FastHistoryBlock& blk) {
   const Eigen::Index n = blk.rows, older = newest_start(blk.window);
   double* __restrict sum = blk.tail;
-  const Eigen::Index ld = blk.ring_stride;
   const double* head = blk.head_reversed;
   Eigen::Index c = 0;
   for (; c + 4 <= older; c += 4) {
-    const double* c0 = blk.window_first + c * ld;
-    const double* c1 = blk.window_first + (c + 1) * ld;
-    const double* c2 = blk.window_first + (c + 2) * ld;
-    const double* c3 = blk.window_first + (c + 3) * ld;
+    const double* c0 = internal::window_column(blk, c);
+    const double* c1 = internal::window_column(blk, c + 1);
+    const double* c2 = internal::window_column(blk, c + 2);
+    const double* c3 = internal::window_column(blk, c + 3);
     const double h0 = head[c], h1 = head[c + 1], h2 = head[c + 2], h3 = head[c + 3];
     FRACVI_INDEPENDENT_ITERATIONS
     for (Eigen::Index i = 0; i < n; ++i)
       sum[i] += (h0 * c0[i] + h1 * c1[i]) + (h2 * c2[i] + h3 * c3[i]);
   }
   for (; c < older; ++c) {
-    const double* __restrict col = blk.window_first + c * ld;
+    const double* __restrict col = internal::window_column(blk, c);
     const double weight = head[c];
     for (Eigen::Index i = 0; i < n; ++i) sum[i] += weight * col[i];
   }
@@ -156,21 +161,16 @@ void newest_block(const internal::FastHistoryBlock& blk) {
   const double* __restrict x = blk.entering;
   {
     double* __restrict slot = blk.slot;
-    double* __restrict slot_copy = blk.slot_copy;
-    if (slot_copy != nullptr) {
-      for (Eigen::Index i = 0; i < n; ++i) slot[i] = slot_copy[i] = x[i];
-    } else {
-      for (Eigen::Index i = 0; i < n; ++i) slot[i] = x[i];
-    }
+    for (Eigen::Index i = 0; i < n; ++i) slot[i] = x[i];
   }
   double* __restrict sum = blk.sum;
   const double* __restrict partial = blk.tail;
   const Eigen::Index c = newest_start(blk.window);
   const double* head = blk.head_reversed;
   if (blk.window - c == 4) {
-    const double* __restrict c0 = blk.newest_older[0];
-    const double* __restrict c1 = blk.newest_older[1];
-    const double* __restrict c2 = blk.newest_older[2];
+    const double* __restrict c0 = internal::window_column(blk, c);
+    const double* __restrict c1 = internal::window_column(blk, c + 1);
+    const double* __restrict c2 = internal::window_column(blk, c + 2);
     const double h0 = head[c], h1 = head[c + 1], h2 = head[c + 2], h3 = head[c + 3];
     FRACVI_INDEPENDENT_ITERATIONS
     for (Eigen::Index i = 0; i < n; ++i)
@@ -218,16 +218,24 @@ constexpr Eigen::Index kAcrossTermsBelow = 4;
   }
   blk.tail[i] = tail;
   // x̃_k enters the ring after x̃_{k−n0} was read: the same memory (see recursion_block).
-  blk.slot[i] = blk.slot_copy[i] = blk.entering[i];
-  const double* col = blk.window_first + i;
+  blk.slot[i] = blk.entering[i];
+  // The window's values oldest first, from ring column `first` on, wrapping at n0.
+  const double* row = blk.ring + i;
   const double* head = blk.head_reversed;
+  const Eigen::Index n0 = blk.window;
+  Eigen::Index column = blk.first;
+  const auto next_value = [&]() {
+    const double value = row[column * ld];
+    if (++column == n0) column = 0;
+    return value;
+  };
   double sum = tail;
   Eigen::Index c = 0;
-  for (; c + 4 <= blk.window; c += 4) {
-    sum += (head[c] * col[c * ld] + head[c + 1] * col[(c + 1) * ld]) +
-           (head[c + 2] * col[(c + 2) * ld] + head[c + 3] * col[(c + 3) * ld]);
+  for (; c + 4 <= n0; c += 4) {
+    const double v0 = next_value(), v1 = next_value(), v2 = next_value(), v3 = next_value();
+    sum += (head[c] * v0 + head[c + 1] * v1) + (head[c + 2] * v2 + head[c + 3] * v3);
   }
-  for (; c < blk.window; ++c) sum += head[c] * col[c * ld];
+  for (; c < n0; ++c) sum += head[c] * next_value();
   blk.sum[i] = sum;
 }
 
@@ -337,11 +345,9 @@ class FastHistory::AheadThread {
 
   /// Starts the next push's recursions (x̃ from ring column `leaving_slot`) and older window (from
   /// column `first`) for rows [0, rows); `timed`: the job records its start and finish.
-  void post(Eigen::Index leaving_slot, Eigen::Index first, Eigen::Index copy_slot,
-            Eigen::Index rows, bool timed) {
+  void post(Eigen::Index leaving_slot, Eigen::Index first, Eigen::Index rows, bool timed) {
     slot_ = leaving_slot;
     first_ = first;
-    copy_slot_ = copy_slot;
     rows_ = rows;
     timed_ = timed;
     caller_cpu_ = internal::current_cpu();
@@ -388,7 +394,7 @@ class FastHistory::AheadThread {
       if (await_other_than(kIdle) == kStop) return;
       const int caller_cpu = caller_cpu_;  // posted with the job (the next post may change it)
       if (timed_) started_ = Clock::now();
-      history_.run_ahead(0, rows_, slot_, first_, copy_slot_);
+      history_.run_ahead(0, rows_, slot_, first_);
       if (timed_) finished_ = Clock::now();
       const bool shared = movable_ && caller_cpu >= 0 && internal::current_cpu() == caller_cpu;
       job_.store(kIdle, std::memory_order_release);
@@ -400,7 +406,7 @@ class FastHistory::AheadThread {
   }
 
   FastHistory& history_;
-  Eigen::Index slot_ = 0, first_ = 0, copy_slot_ = 0, rows_ = 0;
+  Eigen::Index slot_ = 0, first_ = 0, rows_ = 0;
   bool timed_ = false;
   Clock::time_point started_{}, finished_{};  // written by the worker, read after finish()
   int caller_cpu_ = -1;                       // where the caller posted the job from
@@ -416,7 +422,7 @@ FastHistory::FastHistory(std::shared_ptr<const ExponentialFit> fit, Eigen::Index
   head_reversed_.resize(window_);
   for (Eigen::Index i = 0; i < window_; ++i)
     head_reversed_(i) = fit_->head[static_cast<std::size_t>(window_ - 1 - i)];
-  ring_.setZero(dimension, 2 * window_);
+  ring_.setZero(dimension, window_);
   const auto k = static_cast<Eigen::Index>(fit_->terms());
   decay_.resize(k);
   weights_.resize(k);
@@ -451,43 +457,31 @@ constexpr Eigen::Index kBlock = 256;
 // recursions alone), x̃_{k−n0} in ring column `slot`, the window starting at column `first`.
 internal::FastHistoryBlock FastHistory::block(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
                                               Eigen::Index slot, Eigen::Index first,
-                                              const double* entering, bool copy) {
-  // The last group's older columns in the ring's first half. first + newest_start + 2 < 2 n0 when
-  // the group has four (the only case that reads them), so one subtraction wraps (no division:
-  // this runs at every push, d = 1 included).
-  const Eigen::Index newest = first + newest_start(window_);
-  auto original = [&](Eigen::Index c) {
-    return ring_.col(c < window_ ? c : c - window_).data() + b;
-  };
+                                              const double* entering) {
   return {n,
           terms,
           state_.rows(),
           window_,
           ring_.rows(),
+          first,
           state_.data() + b,
           tail_.data() + b,
           sum_.data() + b,
           ring_.col(slot).data() + b,
           entering == nullptr ? nullptr : entering + b,
           ring_.col(slot).data() + b,
-          copy ? ring_.col(slot + window_).data() + b : nullptr,
-          ring_.col(first).data() + b,
-          {original(newest), original(newest + 1), original(newest + 2)},
+          ring_.data() + b,
           decay_.data(),
           weights_.data(),
           head_reversed_.data()};
 }
 
 void FastHistory::run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot,
-                            Eigen::Index first, Eigen::Index copy_slot) {
+                            Eigen::Index first) {
   const Eigen::Index terms = state_.cols();
   for (Eigen::Index b = lo; b < hi; b += kBlock) {
     const Eigen::Index n = std::min(kBlock, hi - b);
-    // The copy of the last x̃ in the ring's second half, which push() left to the run-ahead (the
-    // second thread's rows or the caller's share).
-    internal::copy_elements(ring_.col(copy_slot).data() + b,
-                            ring_.col(copy_slot + window_).data() + b, n);
-    const internal::FastHistoryBlock rows = block(b, n, terms, leaving_slot, first, nullptr, true);
+    const internal::FastHistoryBlock rows = block(b, n, terms, leaving_slot, first, nullptr);
     recursion_block(rows);
     older_window_block(rows);
   }
@@ -502,9 +496,9 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   const auto n0 = static_cast<std::size_t>(window_);
   const auto slot = static_cast<Eigen::Index>(size_ % n0);
   const bool recurse = size_ >= n0;
-  // After the push the last n0 values x̃_{k−n0+1} … x̃_k are the ring columns first … first + n0 − 1
-  // with first = (k + 1) mod n0; before k = n0 − 1 the missing ones are the zeros the ring was
-  // cleared to.
+  // After the push the last n0 values x̃_{k−n0+1} … x̃_k are the ring columns first, first + 1, …
+  // (mod n0) with first = (k + 1) mod n0; before k = n0 − 1 the missing ones are the zeros the
+  // ring was cleared to.
   const auto first = static_cast<Eigen::Index>((size_ + 1) % n0);
   const Eigen::Index terms = state_.cols(), d = ring_.rows();
   // One pass per block of degrees of freedom, all in one parallel region (each region costs a
@@ -518,7 +512,7 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
     // Far below kParallelWork: one block on this thread, without the team's bookkeeping (a third
     // of a d = 1 push's instructions went there, callgrind); never run ahead (no second thread,
     // and visit_state refuses a small system's checkpoint that says so).
-    push_rows_across_terms(block(0, d, recurse ? terms : 0, slot, first, entering, true));
+    push_rows_across_terms(block(0, d, recurse ? terms : 0, slot, first, entering));
     ++size_;
     return;
   }
@@ -540,17 +534,12 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   }
   timed_ahead_ = false;
   const bool run_recursions = recurse && !ahead_;
-  // When the next push runs ahead, x̃_k goes into the ring's first half only, and the second
-  // thread writes its copy in the second half (which keeps the window's columns contiguous) at the
-  // start of its job. The caller's step is the critical path, and the copy's lines, last read by
-  // the other core, cost it their transfer: β-FPUT at d = 1000 with threads = 2 took 9.5–10.4 µs a
-  // step with the caller writing both columns, 8.0–8.7 like this (bench/RESULTS.md).
   const bool post_next = ahead_thread_ && threads > 1 && size_ + 1 >= n0 && size_ + 1 < capacity_;
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
     for (Eigen::Index b = lo; b < hi; b += kBlock) {
       const Eigen::Index n = std::min(kBlock, hi - b);
       const internal::FastHistoryBlock rows =
-          block(b, n, run_recursions ? terms : 0, slot, first, entering, !post_next);
+          block(b, n, run_recursions ? terms : 0, slot, first, entering);
       if (!ahead_) {
         recursion_block(rows);
         older_window_block(rows);
@@ -570,8 +559,8 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
     const auto next_first = static_cast<Eigen::Index>((size_ + 1) % n0);
     const Eigen::Index share = balance_.rows();
     timed_ahead_ = balance_.balanced();
-    ahead_thread_->post(next_slot, next_first, slot, share, timed_ahead_);
-    run_ahead(share, d, next_slot, next_first, slot);
+    ahead_thread_->post(next_slot, next_first, share, timed_ahead_);
+    run_ahead(share, d, next_slot, next_first);
     ahead_ = true;
   }
 }

@@ -15,8 +15,11 @@
 //
 // push() does the recursions, the tail Σ_j w_j Y_j and the window's d × n0 matrix–vector product
 // in one pass over the d × K state (one parallel region per step); sum() returns the result. The
-// ring stores every value twice (columns p and p + n0) so that the last n0 values are always n0
-// contiguous columns. Neither allocates nor throws; all storage is sized at construction.
+// ring stores each value once (x̃_j in column j mod n0), and the window's kernels find its columns
+// around the ring's end, oldest first (one index per group of four columns): it used to store every
+// value twice so that the window was n0 contiguous columns, which cost a d × n0 copy of memory
+// (1.3 MB at d = 10^4, where the history's state no longer fits a core's L2) and a column copy a
+// step. Neither allocates nor throws; all storage is sized at construction.
 //
 // Recursions one step ahead (a team of two threads). The recursions of push k use x̃_{k−n0}, known
 // since push k − n0, and the window's older values are known since push k − 1; only the window's
@@ -24,9 +27,8 @@
 // the second one forms push k+1's recursions, tail and the window but for that last addition while
 // the caller computes the rest of step k+1, and push k+1 only waits for them and makes the last
 // addition: nearly the whole history leaves the caller's path instead of being split with it (the
-// rest of a step is serial: at d = 10^4 a split history allowed ≤ 1.3×, bench/RESULTS.md). The
-// caller then writes x̃_k into the ring once, and the second thread makes the second-half copy:
-// what crosses between the cores on the caller's path is only x̃_k and the tail. For a large system
+// rest of a step is serial: at d = 10^4 a split history allowed ≤ 1.3×, bench/RESULTS.md): what
+// crosses between the cores on the caller's path is only x̃_k and the tail. For a large system
 // the second thread takes only the first rows of that work, and the caller runs the rest right
 // after posting them, at the same time, before it returns to its step: at d = 10^4 the whole
 // history on the second thread outlasted the caller's step (its 2 MB of state comes from L3), and
@@ -115,7 +117,7 @@ class FastHistory final : public History {
   std::size_t capacity_;
   Eigen::Index window_;            // n0
   Eigen::VectorXd head_reversed_;  // c_{n0−1}, …, c_0 (matches the ring's chronological order)
-  Eigen::MatrixXd ring_;           // d × 2n0; x̃_j in columns j mod n0 and j mod n0 + n0
+  Eigen::MatrixXd ring_;           // d × n0; x̃_j in column j mod n0
   Eigen::ArrayXd decay_;           // e^{−λ_j}
   Eigen::VectorXd weights_;        // w_j
   Eigen::ArrayXXd state_;          // d × K; column j holds Y_j (all degrees of freedom)
@@ -137,16 +139,13 @@ class FastHistory final : public History {
   void configure_threads(int threads);
   void configure_balance();
   // Rows [b, b + n) of a push: `terms` recursions (0: none) with x̃ from ring column `slot`, the
-  // window from column `first`, the new value `entering` (null: the recursions alone), written
-  // into both ring columns with `copy`, into the first only without (the second thread copies).
+  // window from column `first` (wrapping at n0), the new value `entering` (null: the recursions
+  // alone), written into ring column `slot`.
   internal::FastHistoryBlock block(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
-                                   Eigen::Index slot, Eigen::Index first, const double* entering,
-                                   bool copy);
+                                   Eigen::Index slot, Eigen::Index first, const double* entering);
   // Rows [lo, hi) of the next push's recursions with x̃ from ring column `leaving_slot`, and its
-  // tail plus the window's terms before the last addition, from column `first` on, into tail_;
-  // first the copy of ring column `copy_slot` (the x̃ just pushed) into its second-half column.
-  void run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot, Eigen::Index first,
-                 Eigen::Index copy_slot);
+  // tail plus the window's terms before the last addition, from column `first` on, into tail_.
+  void run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot, Eigen::Index first);
   void finish_ahead() const;  // waits for recursions in flight
 };
 

@@ -68,7 +68,7 @@ class History {
   /// The order of the weights (quadrature().order).
   [[nodiscard]] double order() const { return quadrature().order; }
   /// Bytes of state this history keeps (values, weights, recursions): N·d·8 for the direct sum,
-  /// (K + 2n0 + 1)·d·8 plus the weights for the fast one.
+  /// (K + n0 + 2)·d·8 plus the weights for the fast one.
   [[nodiscard]] virtual std::size_t memory_bytes() const = 0;
   /// "direct", "fast" or "local": what method.history = "auto" chose (summary.json's history).
   [[nodiscard]] virtual std::string_view kind() const = 0;
