@@ -162,7 +162,7 @@ FastBlockHistory::FastBlockHistory(std::shared_ptr<const RkcqTail> tail, std::si
         tail_->head[static_cast<std::size_t>(static_cast<Eigen::Index>(tail_->window) - 1 - t)]
             .transpose();
   }
-  ring_.setZero(dimension, 2 * window_ * s);
+  ring_.setZero(dimension, window_ * s);
   const auto k = static_cast<Eigen::Index>(tail_->terms());
   decay_.resize(k);
   right_.resize(k, s);
@@ -186,7 +186,7 @@ struct BlockHistoryRows {
   Eigen::Index rows, terms, window, ld, block_ld;
   Eigen::Index slot, first;  // ring positions of Z_{k−n0} (taken by Z_k) and of the window's start
   double* state;             // d × K: column i is Y_i
-  double* ring;              // d × (2·n0·s): column t·s + e is stage e at ring position t
+  double* ring;              // d × (n0·s): column t·s + e is stage e at ring position t
   double* sum;               // d × s
   const double* block;       // Z_k, d × s with column stride block_ld
   const double* decay;       // r_i
@@ -255,22 +255,26 @@ template <int S>
       }
     }
   }
-  // Z_k enters the ring (twice, so that the window is n0·s consecutive columns); Z_{k−n0}, read
-  // above, sat in the same slot.
+  // Z_k enters the ring (once; Z_{k−n0}, read above, sat in the same slot).
   for (int e = 0; e < S; ++e) {
     const double* z = blk.block + e * blk.block_ld;
     double* a = blk.ring + (blk.slot * S + e) * ld;
-    double* b = blk.ring + ((blk.slot + blk.window) * S + e) * ld;
-    for (Eigen::Index r = 0; r < n; ++r) a[r] = b[r] = z[r];
+    for (Eigen::Index r = 0; r < n; ++r) a[r] = z[r];
   }
+  // The window's column q (oldest first) is ring column first·s + q, wrapped at n0·s (the ring
+  // holds each block once, as FastHistory's: fast_history.hpp).
   const Eigen::Index width = blk.window * S;  // 16·s: a multiple of 4
-  const double* window = blk.ring + blk.first * S * ld;
+  const auto window_column = [&](Eigen::Index q) {
+    Eigen::Index column = blk.first * S + q;
+    if (column >= width) column -= width;
+    return blk.ring + column * ld;
+  };
   Eigen::Index q = 0;
   for (; q + 4 <= width; q += 4) {
-    const double* c0 = window + q * ld;
-    const double* c1 = c0 + ld;
-    const double* c2 = c1 + ld;
-    const double* c3 = c2 + ld;
+    const double* c0 = window_column(q);
+    const double* c1 = window_column(q + 1);
+    const double* c2 = window_column(q + 2);
+    const double* c3 = window_column(q + 3);
     double h[S][4];
     for (int c = 0; c < S; ++c)
       for (int j = 0; j < 4; ++j) h[c][j] = blk.head[c * width + q + j];
@@ -282,7 +286,7 @@ template <int S>
     }
   }
   for (; q < width; ++q) {
-    const double* col = window + q * ld;
+    const double* col = window_column(q);
     for (int c = 0; c < S; ++c) {
       const double weight = blk.head[c * width + q];
       for (Eigen::Index r = 0; r < n; ++r) out[c][r] += weight * col[r];

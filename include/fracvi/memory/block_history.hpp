@@ -15,7 +15,7 @@
 //  * FastBlockHistory: the n0 most recent lags with exact blocks, and the tail through
 //    W_j ≈ Σ_i γ_i r_i^{j−n0} u_i v_iᵀ (fit_rkcq_tail(), docs/theory/rkcq_weights.md §10): per tail
 //    term i one d-vector Y_i ← r_i Y_i + Z_{k−n0} v_i, and the tail is Σ_i γ_i Y_i u_iᵀ. Work
-//    O((K(2s + 1) + n0 s²)·d) per step, memory O((K + 2 n0 s)·d) independent of N
+//    O((K(2s + 1) + n0 s²)·d) per step, memory O((K + n0 s)·d) independent of N
 //    (docs/theory/fast_history.md, "Block history (Runge–Kutta CQ)"). Integer orders (W_j = 0
 //    beyond j = β) use the same class with no tail terms: a local history.
 //
@@ -149,8 +149,7 @@ class FastBlockHistory final : public BlockHistory {
   Eigen::Index window_;  // n0
   Eigen::Index stages_;  // s
   Eigen::MatrixXd head_;  // (n0·s) × s; rows t·s … t·s + s − 1 hold W_{lag+n0−1−t}ᵀ (oldest first)
-  Eigen::MatrixXd
-      ring_;  // d × (2·n0·s); column t·s + e: stage e of ring position t (n0 positions, twice)
+  Eigen::MatrixXd ring_;   // d × (n0·s); column t·s + e: stage e of ring position t
   Eigen::VectorXd decay_;  // r_i (K)
   Eigen::MatrixXd right_;  // K × s, column e: (v_i)_e
   Eigen::MatrixXd left_;   // K × s, column c: γ_i (u_i)_c
