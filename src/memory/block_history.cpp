@@ -14,6 +14,7 @@
 
 #include "fracvi/fractional/convolution.hpp"
 #include "fracvi/internal/parallel.hpp"
+#include "fracvi/internal/ring_window.hpp"
 #include "fracvi/internal/vectorize.hpp"
 #include "fracvi/memory/fast_history.hpp"
 
@@ -265,9 +266,7 @@ template <int S>
   // holds each block once, as FastHistory's: fast_history.hpp).
   const Eigen::Index width = blk.window * S;  // 16·s: a multiple of 4
   const auto window_column = [&](Eigen::Index q) {
-    Eigen::Index column = blk.first * S + q;
-    if (column >= width) column -= width;
-    return blk.ring + column * ld;
+    return internal::ring_window_column(blk.ring, ld, width, blk.first * S, q);
   };
   Eigen::Index q = 0;
   for (; q + 4 <= width; q += 4) {

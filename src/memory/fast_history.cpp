@@ -13,6 +13,7 @@
 
 #include "fracvi/internal/cpu_placement.hpp"
 #include "fracvi/internal/parallel.hpp"
+#include "fracvi/internal/ring_window.hpp"
 #include "fracvi/internal/vectorize.hpp"
 
 namespace fracvi {
@@ -43,9 +44,7 @@ struct FastHistoryBlock {
 // The ring column of the window's value c (0 = the oldest): the ring holds each value once, in
 // column j mod n0 for x̃_j, so the window wraps around its end.
 inline const double* window_column(const FastHistoryBlock& blk, Eigen::Index c) {
-  Eigen::Index column = blk.first + c;
-  if (column >= blk.window) column -= blk.window;
-  return blk.ring + column * blk.ring_stride;
+  return ring_window_column(blk.ring, blk.ring_stride, blk.window, blk.first, c);
 }
 
 }  // namespace internal
@@ -223,19 +222,16 @@ constexpr Eigen::Index kAcrossTermsBelow = 4;
   const double* row = blk.ring + i;
   const double* head = blk.head_reversed;
   const Eigen::Index n0 = blk.window;
-  Eigen::Index column = blk.first;
-  const auto next_value = [&]() {
-    const double value = row[column * ld];
-    if (++column == n0) column = 0;
-    return value;
+  const auto value = [&](Eigen::Index c) {
+    return *internal::ring_window_column(row, ld, n0, blk.first, c);
   };
   double sum = tail;
   Eigen::Index c = 0;
   for (; c + 4 <= n0; c += 4) {
-    const double v0 = next_value(), v1 = next_value(), v2 = next_value(), v3 = next_value();
-    sum += (head[c] * v0 + head[c + 1] * v1) + (head[c + 2] * v2 + head[c + 3] * v3);
+    sum += (head[c] * value(c) + head[c + 1] * value(c + 1)) +
+           (head[c + 2] * value(c + 2) + head[c + 3] * value(c + 3));
   }
-  for (; c < n0; ++c) sum += head[c] * next_value();
+  for (; c < n0; ++c) sum += head[c] * value(c);
   blk.sum[i] = sum;
 }
 
