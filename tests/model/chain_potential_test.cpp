@@ -17,20 +17,23 @@ namespace {
 
 constexpr double kK = 1.3, kA = 0.7, kB = 2.1, kC = 0.4;
 
-// V(r) = k/2 r² + a/3 r³ + b/4 r⁴ of the bond from x_i to x_j (names x1..xd; "0" is a wall).
-std::string bond(const std::string& xi, const std::string& xj) {
+// V(r) = k/2 r² + a/3 r³ + b/4 r⁴ of the bond from x_i to x_j (names x1..xd; "0" is a wall);
+// `linear`: k/2 r² only.
+std::string bond(const std::string& xi, const std::string& xj, bool linear) {
   const std::string r = "((" + xj + ")-(" + xi + "))";
-  return "+" + std::to_string(kK) + "/2*" + r + "^2+" + std::to_string(kA) + "/3*" + r + "^3+" +
-         std::to_string(kB) + "/4*" + r + "^4";
+  const std::string quadratic = "+" + std::to_string(kK) + "/2*" + r + "^2";
+  if (linear) return quadratic;
+  return quadratic + "+" + std::to_string(kA) + "/3*" + r + "^3+" + std::to_string(kB) + "/4*" + r +
+         "^4";
 }
 
-std::string chain_formula(Eigen::Index d, ChainBoundary boundary) {
+std::string chain_formula(Eigen::Index d, ChainBoundary boundary, bool linear = false) {
   auto x = [](Eigen::Index i) { return "x" + std::to_string(i + 1); };
   std::string u = "0";
   for (Eigen::Index i = 0; i < d; ++i) u += "+" + std::to_string(kC) + "/2*" + x(i) + "^2";
-  for (Eigen::Index i = 0; i + 1 < d; ++i) u += bond(x(i), x(i + 1));
-  if (boundary == ChainBoundary::kFixed) u += bond("0", x(0)) + bond(x(d - 1), "0");
-  if (boundary == ChainBoundary::kPeriodic) u += bond(x(d - 1), x(0));
+  for (Eigen::Index i = 0; i + 1 < d; ++i) u += bond(x(i), x(i + 1), linear);
+  if (boundary == ChainBoundary::kFixed) u += bond("0", x(0), linear) + bond(x(d - 1), "0", linear);
+  if (boundary == ChainBoundary::kPeriodic) u += bond(x(d - 1), x(0), linear);
   return u;
 }
 
@@ -84,6 +87,28 @@ TEST_P(ChainVsFormula, ValueGradientHessianAgree) {
     bool found = false;
     for (const auto& c : chain.hessian_pattern()) found |= (c.row == e.row && c.col == e.col);
     EXPECT_TRUE(found) << "(" << e.row << ", " << e.col << ")";
+  }
+}
+
+// A linear chain (cubic = quartic = 0) has its own interior kernels (chain_potential.cpp): d = 37
+// puts a vector body and a remainder in them, for every boundary.
+TEST_P(ChainVsFormula, LinearChainKernelsAgree) {
+  constexpr Eigen::Index kD = 37;
+  ChainOptions o = options(kD, GetParam());
+  o.cubic = o.quartic = 0.0;
+  const ChainPotential chain(o);
+  const ExpressionPotential formula(kD, chain_formula(kD, GetParam(), true));
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-0.8, 0.8);
+  for (int trial = 0; trial < 5; ++trial) {
+    Eigen::VectorXd x(kD);
+    for (auto& xi : x) xi = u(rng);
+    const double scale = std::abs(formula.value(x, 0.0)) + 1.0;
+    EXPECT_NEAR(chain.value(x, 0.0), formula.value(x, 0.0), 1e-14 * scale);
+    Eigen::VectorXd g1(kD), g2(kD);
+    chain.gradient(x, 0.0, g1);
+    formula.gradient(x, 0.0, g2);
+    EXPECT_LE((g1 - g2).cwiseAbs().maxCoeff(), 1e-14);
   }
 }
 
