@@ -577,8 +577,12 @@ struct Integrator::Impl {
   // E_k = ½ v_kᵀ p_k + U(x_k, t_k) from the stepper's state; sets kinetic_k and potential_k.
   [[nodiscard]] double energy(std::size_t i) {
     const Eigen::VectorXd &v = stepper->velocity(), &p = stepper->momentum();
-    kinetic_k = 0.5 * (d >= internal::kVectorPassesFrom ? internal::dot_pass(v.data(), p.data(), d)
-                                                        : v.dot(p));
+    // v·p as the step's momentum pass summed it, when it did (Stepper::step_sums: the same bits).
+    const Stepper::StepSums& sums = stepper->step_sums();
+    kinetic_k =
+        0.5 * (sums.step == i && sums.has_velocity_momentum ? sums.velocity_momentum
+               : d >= internal::kVectorPassesFrom ? internal::dot_pass(v.data(), p.data(), d)
+                                                  : v.dot(p));
     potential_k = problem.model.potential
                       ? problem.model.potential->value(stepper->position(), time(i))
                       : 0.0;
@@ -670,7 +674,10 @@ struct Integrator::Impl {
       }
     }
     // Rule 2: the state grew by orders of magnitude.
-    const double x_norm = mass_norm(stepper->position());
+    // ‖x_k‖_M as the step's position pass summed it, when it did (the same bits as mass_norm).
+    const Stepper::StepSums& sums = stepper->step_sums();
+    const double x_norm = sums.step == k && sums.has_mass_squares ? std::sqrt(sums.mass_squares)
+                                                                  : mass_norm(stepper->position());
     double base = std::max(state_base, growth_reference);
     if (options.diagnostics) base = std::max(base, span * std::sqrt(2.0 * energy_scale));
     if (base > 0.0 && x_norm > kUnstableGrowthFactor * base) {

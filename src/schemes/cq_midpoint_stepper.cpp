@@ -85,6 +85,12 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
   if (fused_passes_) {
     tilde_x0_ = shift_x0_ ? problem.x0 : Eigen::VectorXd::Zero(d_);
     tilde_v0_ = shift_v0_ ? problem.v0 : Eigen::VectorXd::Zero(d_);
+    // The health check's weights √M_ii, as the Integrator forms them (its mass_norm).
+    if (d_ >= kVectorPassesFrom && !mass_solver_.unit_mass()) {
+      root_mass_.resize(d_);
+      for (Eigen::Index i = 0; i < d_; ++i)
+        root_mass_[i] = std::sqrt(std::max(0.0, problem.model.mass.coeff(i, i)));
+    }
   }
   g_mid_.setZero(d_);
 
@@ -194,11 +200,15 @@ Status CqMidpointStepper::advance() {
     }
   }
   // x_{k+1} and its check in one pass; with a diagonal M, p⁻_{k+1} and x̃_{k+1} in the same pass.
+  // From kVectorPassesFrom on, the same pass sums the health check's ‖x_{k+1}‖²_M (step_sums()).
+  const bool vector_sums = fused && d_ >= kVectorPassesFrom;
+  double mass_squares = 0.0;
   const bool position_finite =
       fused ? new_position_pass(mass_solver_.diagonal()->data(), mass_solver_.unit_mass(),
                                 dx_.data(), 2.0 / h_, p_plus_.data(), xk.data(), tilde_x0_.data(),
                                 static_cast<double>(k + 1) * h_, tilde_v0_.data(), p_minus_.data(),
-                                x_next_.data(), use_history_ ? x_tilde_.data() : nullptr, d_)
+                                x_next_.data(), use_history_ ? x_tilde_.data() : nullptr, d_,
+                                root_mass_.data(), vector_sums ? &mass_squares : nullptr)
             : add_and_check(xk.data(), dx_.data(), x_next_.data(), d_);
   if (!position_finite) return fail(Status::kNonFinite, "non-finite position");
 
@@ -294,6 +304,13 @@ Status CqMidpointStepper::advance() {
 
   if (k == 0) x_first_ = x_next_;  // the mirror run starts from x_0, x_1
   ++k_;
+  if (vector_sums) {
+    step_sums_.step = k_;
+    step_sums_.has_mass_squares = true;
+    step_sums_.mass_squares = mass_squares;
+    step_sums_.has_velocity_momentum = vector_dots;  // the momentum pass's v·p
+    step_sums_.velocity_momentum = momentum.vp;
+  }
   x_cur_.swap(x_next_);
   v_cur_.swap(v_next_);
   force_.swap(force_next_);

@@ -115,6 +115,7 @@ class CqMidpointStepper final : public Stepper {
   // same roundings.
   bool fused_passes_ = false;
   Eigen::VectorXd tilde_x0_, tilde_v0_;  // x_0 and v_0 as x̃ subtracts them (zero where not)
+  Eigen::VectorXd root_mass_;  // √M_ii for the health check's sum (fused, M ≠ I, large d only)
   double fv_ = 0.0, fw_ = 0.0, work_ = 0.0, supplied_ = 0.0;
 };
 

@@ -14,6 +14,7 @@ namespace fracvi {
 Status Stepper::step() noexcept {
   message_[0] = '\0';
   detail_[0] = '\0';
+  step_sums_ = {};
   const char* detail = "unknown exception";
   try {
     return advance();

@@ -62,9 +62,10 @@ void shifted(const double* x, const double* x0, double t, const double* v0, doub
 FRACVI_HOT_KERNEL
 bool new_position(const double* m, bool unit_mass, const double* increment, double s,
                   const double* p_plus, const double* a, const double* x0, double t,
-                  const double* v0, double* p_minus, double* next, double* tilde, Eigen::Index n) {
+                  const double* v0, double* p_minus, double* next, double* tilde,
+                  const double* root_mass, double* squares, Eigen::Index n) {
   return loops::new_position<true>(m, unit_mass, increment, s, p_plus, a, x0, t, v0, p_minus, next,
-                                   tilde, n);
+                                   tilde, root_mass, squares, n);
 }
 
 FRACVI_HOT_KERNEL

@@ -16,6 +16,8 @@
 #include "../support/linear_oscillator_reference.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/chain_potential.hpp"
+#include "fracvi/schemes/registry.hpp"
+#include "fracvi/solve/vector_passes.hpp"
 #include "integrate_test_support.hpp"
 
 namespace fracvi {
@@ -282,6 +284,61 @@ TEST(Chain, OptionsAreValidated) {
   o = IntegratorOptions{};
   o.threads = -2;
   EXPECT_THROW(Integrator(p, fvi_gl(), o), ValidationError);
+}
+
+// The sums a CQ midpoint step forms in its fused passes for the Integrator (Stepper::step_sums:
+// v·p for the kinetic energy, ‖x‖²_M for the health check) are bit for bit those of the passes the
+// Integrator would run, at every step, for diagonal M ≠ I and M = I, with and without
+// diagnostics; below kVectorPassesFrom (where the Integrator keeps Eigen's sums) none are formed,
+// and neither by fvi-midpoint's step (TrapezoidalMidpointStepper, no fused passes).
+TEST(Chain, StepSumsAreTheIntegratorsPassesBitForBit) {
+  for (const char* scheme : {"fvi-gl", "fvi-bdf2", "fvi-midpoint"}) {
+    const bool fused = std::string(scheme) != "fvi-midpoint";
+    for (const Eigen::Index d : {Eigen::Index{8}, Eigen::Index{101}}) {
+      for (const bool unit_mass : {false, true}) {
+        for (const bool diagnostics : {true, false}) {
+          ChainSetup s;
+          s.d = d;
+          s.steps = 20;
+          InitialValueProblem p = chain_problem(s);
+          if (unit_mass) p.model.mass = ModelMatrix::identity(d);
+          IntegratorOptions o;
+          o.diagnostics = diagnostics;
+          o.mirror = false;
+          const std::unique_ptr<Stepper> stepper = find_scheme(scheme)->make_stepper(p, o);
+          Eigen::VectorXd root_mass(d);
+          for (Eigen::Index i = 0; i < d; ++i) root_mass[i] = std::sqrt(p.model.mass.coeff(i, i));
+          const bool vector = d >= internal::kVectorPassesFrom;
+          for (std::size_t k = 1; k <= s.steps; ++k) {
+            ASSERT_EQ(stepper->step(), Status::kSuccess) << stepper->failure_message();
+            const Stepper::StepSums& sums = stepper->step_sums();
+            const std::string where =
+                std::string(scheme) + ", d = " + std::to_string(d) + ", step " + std::to_string(k);
+            if (!vector || !fused) {
+              EXPECT_FALSE(sums.has_mass_squares || sums.has_velocity_momentum) << where;
+              continue;
+            }
+            // Step 1 of fvi-gl's paper start runs the Euler start, outside the fused passes.
+            if (!sums.has_mass_squares) {
+              EXPECT_EQ(k, 1u) << where;
+              continue;
+            }
+            EXPECT_EQ(sums.step, k) << where;
+            const Eigen::VectorXd &x = stepper->position(), &v = stepper->velocity(),
+                                  &mom = stepper->momentum();
+            EXPECT_EQ(sums.mass_squares,
+                      internal::weighted_squares_pass(root_mass.data(), x.data(), d))
+                << where;
+            EXPECT_EQ(sums.has_velocity_momentum, diagnostics) << where;
+            if (diagnostics) {
+              EXPECT_EQ(sums.velocity_momentum, internal::dot_pass(v.data(), mom.data(), d))
+                  << where;
+            }
+          }
+        }
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 // The fused element passes of the CQ midpoint step for diagonal M and R' (new_position_pass,
 // new_momentum_pass, solve/vector_passes.hpp) against the passes they replace, applied one after
 // another: the same numbers bit for bit, below kVectorPassesFrom (the inlined loops) and above it
-// (the kernels and their x86-64-v3 clones), and the same finiteness verdicts.
+// (the kernels and their x86-64-v3 clones), the sums they form for the Integrator (v·p, ‖x‖²_M)
+// bit for bit those of its own passes, and the same finiteness verdicts.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -62,6 +63,25 @@ TEST(StepPasses, NewPositionIsTheSeparatePassesBitForBit) {
         EXPECT_TRUE(bitwise_equal(p_minus, p_minus_ref)) << "n = " << n;
         EXPECT_TRUE(bitwise_equal(next, next_ref)) << "n = " << n;
         EXPECT_TRUE(bitwise_equal(tilde, tilde_ref)) << "n = " << n << ", shift " << shift;
+        // With the health check's Σ (√m_i x_i)², as weighted_squares_pass sums it (n ≥
+        // kVectorPassesFrom, where the step forms it): the other outputs alike.
+        if (n >= kVectorPassesFrom) {
+          const Eigen::VectorXd root_mass = m.cwiseSqrt();
+          const double squares_ref = weighted_squares_pass(root_mass.data(), next_ref.data(), n);
+          double squares = -1.0;
+          Eigen::VectorXd tilde2(n);
+          ASSERT_TRUE(new_position_pass(m.data(), unit, dx.data(), s, p_plus.data(), a.data(),
+                                        sx ? x0.data() : zero.data(), t,
+                                        sv ? v0.data() : zero.data(), p_minus.data(), next.data(),
+                                        shift == 3 ? nullptr : tilde2.data(), n,
+                                        unit ? nullptr : root_mass.data(), &squares));
+          EXPECT_EQ(squares, squares_ref) << "n = " << n << ", unit " << unit;
+          EXPECT_TRUE(bitwise_equal(p_minus, p_minus_ref));
+          EXPECT_TRUE(bitwise_equal(next, next_ref));
+          if (shift != 3) {
+            EXPECT_TRUE(bitwise_equal(tilde2, tilde_ref));
+          }
+        }
         // Without x̃ (no history): the other outputs alike, x̃ untouched.
         Eigen::VectorXd untouched = Eigen::VectorXd::Constant(n, 5.0);
         ASSERT_TRUE(new_position_pass(m.data(), unit, dx.data(), s, p_plus.data(), a.data(),
@@ -98,6 +118,7 @@ TEST(StepPasses, NewMomentumIsTheSeparatePassesBitForBit) {
       // kVectorPassesFrom on).
       const double fv_ref = dot_pass(force_ref.data(), v_ref.data(), n);
       const double fw_ref = dot_pass(force_ref.data(), w_ref.data(), n);
+      const double vp_ref = dot_pass(v_ref.data(), p_ref.data(), n);  // the kinetic energy's
       for (const bool with_w : {true, false}) {
         for (const bool with_dots : {true, false}) {
           if (with_dots && n < kVectorPassesFrom) continue;  // the step keeps Eigen's sums there
@@ -118,6 +139,7 @@ TEST(StepPasses, NewMomentumIsTheSeparatePassesBitForBit) {
           if (with_dots) {  // with or without w stored
             EXPECT_EQ(pass.fv, fv_ref) << "n = " << n << ", unit " << unit;
             EXPECT_EQ(pass.fw, fw_ref) << "n = " << n << ", unit " << unit;
+            EXPECT_EQ(pass.vp, vp_ref) << "n = " << n << ", unit " << unit;
           }
         }
       }

@@ -144,6 +144,19 @@ class Stepper {
   /// Newton iterations of the last step (1 for a linear problem; 0 for an explicit step).
   [[nodiscard]] int last_iterations() const { return last_iterations_; }
 
+  /// Sums over the state that the last step's own element passes formed as they wrote it (a
+  /// large system's fused passes), so that the Integrator's diagnostics and health check need no
+  /// pass of their own: the same numbers bit for bit as those passes (dot_pass, and
+  /// weighted_squares_pass with √M_ii). For step `step` only; none formed by default.
+  struct StepSums {
+    std::size_t step = std::numeric_limits<std::size_t>::max();
+    bool has_velocity_momentum = false;
+    double velocity_momentum = 0.0;  // v_k·p_k (twice the kinetic energy)
+    bool has_mass_squares = false;
+    double mass_squares = 0.0;  // Σ (√M_ii x_k,i)², the health check's ‖x_k‖²_M (diagonal M)
+  };
+  [[nodiscard]] const StepSums& step_sums() const { return step_sums_; }
+
   /// Why the last step failed (empty after a successful step), and the exception text of a
   /// throwing callback (else empty).
   [[nodiscard]] const char* failure_message() const { return message_.data(); }
@@ -160,6 +173,9 @@ class Stepper {
   /// Records a failure (printf-style cause) and returns its status.
   Status fail(Status status, const char* format, ...) noexcept;
   void set_iterations(int iterations) noexcept { last_iterations_ = iterations; }
+  /// What advance() formed of step_sums() (cleared before each step, so that a failed step
+  /// leaves none).
+  StepSums step_sums_;
   /// One MidpointNewton solve as the step's outcome: records its iterations and returns kSuccess,
   /// or the failure with its message — non-finite values, "the Newton matrix <matrix> could not
   /// be factored (singular)", or the iteration limit with the last correction and tolerance.

@@ -44,6 +44,7 @@ struct MomentumPass {
   bool finite = true;  // every v_i finite
   double fv = 0.0;     // F·v (with_dots only)
   double fw = 0.0;     // F·M⁻¹F (with_dots only)
+  double vp = 0.0;     // v·p, twice the kinetic energy (with_dots only)
 };
 
 // The loops, written once: inlined below kVectorPassesFrom as plain loops (kSimd = false), and
@@ -182,53 +183,65 @@ FRACVI_PASS void shifted(const double* x, const double* x0, double t, const doub
 // p⁻_i = (m_i Δ_i)·s − p⁺_i (Δ_i·s − p⁺_i with kUnitMass: 1·Δ_i is Δ_i), x_next_i = a_i + Δ_i
 // and, with kTilde, x̃_i = (x_next_i − x0_i) −
 // t v0_i — the roundings of M Δ, then of scale_and_subtract, add_and_check and shifted (a zero x0
-// or v0 stands for a term left out: x − 0 and y − t·0 are x and y). Returns whether every
-// x_next_i is finite.
-template <bool kSimd, bool kUnitMass, bool kTilde>
-[[gnu::always_inline]] inline bool new_position_loop(const double* m, const double* increment,
-                                                     double s, const double* p_plus,
-                                                     const double* a, const double* x0, double t,
-                                                     const double* v0, double* p_minus,
-                                                     double* next, double* tilde, Eigen::Index n) {
-  double zero = 0.0;
-#pragma omp simd if (simd : kSimd) reduction(+ : zero)
+// or v0 stands for a term left out: x − 0 and y − t·0 are x and y) — and, with kSquares, the
+// health check's Σ (√m_i x_next_i)² summed as weighted_squares sums it (root_mass = √m; for
+// kUnitMass 1·x is x). Returns whether every x_next_i is finite.
+template <bool kSimd, bool kUnitMass, bool kTilde, bool kSquares>
+[[gnu::always_inline]] inline bool new_position_loop(
+    const double* m, const double* increment, double s, const double* p_plus, const double* a,
+    const double* x0, double t, const double* v0, double* p_minus, double* next, double* tilde,
+    const double* root_mass, double* squares, Eigen::Index n) {
+  double zero = 0.0, sum = 0.0;
+#pragma omp simd if (simd : kSimd) reduction(+ : zero, sum)
   for (Eigen::Index i = 0; i < n; ++i) {
     p_minus[i] = (kUnitMass ? increment[i] : m[i] * increment[i]) * s - p_plus[i];
     const double value = a[i] + increment[i];
     next[i] = value;
     zero += 0.0 * value;
     if constexpr (kTilde) tilde[i] = (value - x0[i]) - t * v0[i];
+    if constexpr (kSquares) {
+      const double y = kUnitMass ? value : root_mass[i] * value;
+      sum += y * y;
+    }
   }
+  if constexpr (kSquares) *squares = sum;
   return zero == 0.0;
 }
 
 FRACVI_PASS bool new_position(const double* m, bool unit_mass, const double* increment, double s,
                               const double* p_plus, const double* a, const double* x0, double t,
                               const double* v0, double* p_minus, double* next, double* tilde,
-                              Eigen::Index n) {
-#define FRACVI_POSITION_LOOP(unit, with_tilde)                                                     \
-  new_position_loop<kSimd, unit, with_tilde>(m, increment, s, p_plus, a, x0, t, v0, p_minus, next, \
-                                             tilde, n)
+                              const double* root_mass, double* squares, Eigen::Index n) {
+#define FRACVI_POSITION_LOOP(unit, with_tilde, with_squares) \
+  new_position_loop<kSimd, unit, with_tilde, with_squares>(  \
+      m, increment, s, p_plus, a, x0, t, v0, p_minus, next, tilde, root_mass, squares, n)
+#define FRACVI_POSITION_TILDE(unit, with_squares)                    \
+  (tilde != nullptr ? FRACVI_POSITION_LOOP(unit, true, with_squares) \
+                    : FRACVI_POSITION_LOOP(unit, false, with_squares))
   if (unit_mass) {
-    return tilde != nullptr ? FRACVI_POSITION_LOOP(true, true) : FRACVI_POSITION_LOOP(true, false);
+    return squares != nullptr ? FRACVI_POSITION_TILDE(true, true)
+                              : FRACVI_POSITION_TILDE(true, false);
   }
-  return tilde != nullptr ? FRACVI_POSITION_LOOP(false, true) : FRACVI_POSITION_LOOP(false, false);
+  return squares != nullptr ? FRACVI_POSITION_TILDE(false, true)
+                            : FRACVI_POSITION_TILDE(false, false);
+#undef FRACVI_POSITION_TILDE
 #undef FRACVI_POSITION_LOOP
 }
 
 // The damping force and the new momentum and velocity, for diagonal M = diag(m) and R' = diag(r):
 // F_i = r_i s_i, p_i = p⁻_i − c F_i, v_i = p_i / m_i (p_i itself with kUnitMass, M = I), with
 // kStoreQuotient w_i = F_i / m_i — the roundings of R' s, subtract_scaled and the mass solver's
-// quotients — and with kDots the energy account's F·v and F·M⁻¹F (F·F for M = I), summed as dot's
-// simd reduction sums them (tested bit for bit, tests/integrate/step_passes_test).
+// quotients — and with kDots the energy account's F·v and F·M⁻¹F (F·F for M = I) and the kinetic
+// energy's v·p, summed as dot's simd reduction sums them (tested bit for bit,
+// tests/integrate/step_passes_test).
 template <bool kSimd, bool kUnitMass, bool kStoreQuotient, bool kDots>
 [[gnu::always_inline]] inline MomentumPass new_momentum_loop(const double* r, const double* sum,
                                                              const double* p_minus, double c,
                                                              const double* m, double* force,
                                                              double* p, double* v, double* w,
                                                              Eigen::Index n) {
-  double zero = 0.0, fv = 0.0, fw = 0.0;
-#pragma omp simd if (simd : kSimd) reduction(+ : zero, fv, fw)
+  double zero = 0.0, fv = 0.0, fw = 0.0, vp = 0.0;
+#pragma omp simd if (simd : kSimd) reduction(+ : zero, fv, fw, vp)
   for (Eigen::Index i = 0; i < n; ++i) {
     const double f = r[i] * sum[i];
     force[i] = f;
@@ -242,9 +255,10 @@ template <bool kSimd, bool kUnitMass, bool kStoreQuotient, bool kDots>
     if constexpr (kDots) {
       fv += f * velocity;
       fw += f * quotient;
+      vp += velocity * momentum;
     }
   }
-  return {zero == 0.0, fv, fw};
+  return {zero == 0.0, fv, fw, vp};
 }
 
 FRACVI_PASS MomentumPass new_momentum(const double* r, const double* sum, const double* p_minus,
@@ -306,7 +320,8 @@ void shifted(const double* x, const double* x0, double t, const double* v0, doub
              Eigen::Index n);
 bool new_position(const double* m, bool unit_mass, const double* increment, double s,
                   const double* p_plus, const double* a, const double* x0, double t,
-                  const double* v0, double* p_minus, double* next, double* tilde, Eigen::Index n);
+                  const double* v0, double* p_minus, double* next, double* tilde,
+                  const double* root_mass, double* squares, Eigen::Index n);
 MomentumPass new_momentum(const double* r, const double* sum, const double* p_minus, double c,
                           const double* m, bool unit_mass, double* force, double* p, double* v,
                           double* w, bool with_dots, Eigen::Index n);
@@ -370,18 +385,21 @@ inline void shifted_pass(const double* x, const double* x0, double t, const doub
   FRACVI_DISPATCH(shifted, x, x0, t, v0, out, n);
 }
 /// For M = diag(m): p⁻_i = (m_i Δ_i) s − p⁺_i, x_next_i = a_i + Δ_i and (unless `tilde` is
-/// null) x̃_i = (x_next_i − x0_i) − t v0_i; `unit_mass` (m = 1) skips the products by 1. Returns
-/// whether every x_next_i is finite.
+/// null) x̃_i = (x_next_i − x0_i) − t v0_i; `unit_mass` (m = 1) skips the products by 1. Unless
+/// `squares` is null, *squares = Σ (√m_i x_next_i)² in weighted_squares_pass's order (root_mass =
+/// √m, not read for `unit_mass`; n ≥ kVectorPassesFrom, where the health check takes that pass).
+/// Returns whether every x_next_i is finite.
 inline bool new_position_pass(const double* m, bool unit_mass, const double* increment, double s,
                               const double* p_plus, const double* a, const double* x0, double t,
                               const double* v0, double* p_minus, double* next, double* tilde,
-                              Eigen::Index n) {
+                              Eigen::Index n, const double* root_mass = nullptr,
+                              double* squares = nullptr) {
   return FRACVI_DISPATCH(new_position, m, unit_mass, increment, s, p_plus, a, x0, t, v0, p_minus,
-                         next, tilde, n);
+                         next, tilde, root_mass, squares, n);
 }
 /// For M = diag(m), R' = diag(r): F_i = r_i s_i, p_i = p⁻_i − c F_i, v_i = p_i / m_i (p_i for
 /// `unit_mass`), unless `w` is null w_i = F_i / m_i (not written for `unit_mass`), and with
-/// `with_dots` F·v and F·M⁻¹F in dot_pass's order (n ≥ kVectorPassesFrom; smaller systems keep
+/// `with_dots` F·v, F·M⁻¹F and v·p in dot_pass's order (n ≥ kVectorPassesFrom; smaller systems keep
 /// Eigen's sums).
 inline MomentumPass new_momentum_pass(const double* r, const double* sum, const double* p_minus,
                                       double c, const double* m, bool unit_mass, double* force,
