@@ -74,44 +74,57 @@ std::shared_ptr<const ExponentialFit> checked_fit(std::shared_ptr<const Exponent
 // pass ran at ≈ 2 stores per multiply–add pair). The two passes are separate kernels because the
 // second thread of a team of two runs the first one step ahead (fast_history.hpp); one thread runs
 // them block by block, so that the tail's block is still in L1 for the window.
+// Four recursions j … j + 3 over the block's rows, their terms added to the tail; the first
+// group (kFirst) adds them to 0 instead of reading the tail: 0 + s is the same number as a zeroed
+// tail plus s, −0 included (an assignment of s would keep −0), without a pass that zeroes it.
+template <bool kFirst>
+[[gnu::always_inline]] inline void recursion_group(const internal::FastHistoryBlock& blk,
+                                                   Eigen::Index j) {
+  const Eigen::Index n = blk.rows, stride = blk.state_stride;
+  double* __restrict tail = blk.tail;
+  const double* __restrict x = blk.leaving;
+  // Four columns of one array: restrict pointers would not vectorise (vectorize.hpp).
+  double* y0 = blk.state + j * stride;
+  double* y1 = blk.state + (j + 1) * stride;
+  double* y2 = blk.state + (j + 2) * stride;
+  double* y3 = blk.state + (j + 3) * stride;
+  const double a0 = blk.decay[j], a1 = blk.decay[j + 1], a2 = blk.decay[j + 2],
+               a3 = blk.decay[j + 3];
+  const double w0 = blk.weights[j], w1 = blk.weights[j + 1], w2 = blk.weights[j + 2],
+               w3 = blk.weights[j + 3];
+  FRACVI_INDEPENDENT_ITERATIONS
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double v0 = a0 * y0[i] + x[i], v1 = a1 * y1[i] + x[i];
+    const double v2 = a2 * y2[i] + x[i], v3 = a3 * y3[i] + x[i];
+    y0[i] = v0;
+    y1[i] = v1;
+    y2[i] = v2;
+    y3[i] = v3;
+    tail[i] = (kFirst ? 0.0 : tail[i]) + ((w0 * v0 + w1 * v1) + (w2 * v2 + w3 * v3));
+  }
+}
+
 FRACVI_HOT_KERNEL
 void recursion_block(const internal::FastHistoryBlock& blk) {
   const Eigen::Index n = blk.rows, terms = blk.terms, stride = blk.state_stride;
   double* const state = blk.state;
-  for (Eigen::Index i = 0; i < n; ++i) blk.tail[i] = 0.0;  // no recursions yet: the tail is 0
-  if (terms > 0) {
-    double* __restrict tail = blk.tail;
-    const double* __restrict x = blk.leaving;
-    Eigen::Index j = 0;
-    for (; j + 4 <= terms; j += 4) {
-      // Four columns of one array: restrict pointers would not vectorise (vectorize.hpp).
-      double* y0 = state + j * stride;
-      double* y1 = state + (j + 1) * stride;
-      double* y2 = state + (j + 2) * stride;
-      double* y3 = state + (j + 3) * stride;
-      const double a0 = blk.decay[j], a1 = blk.decay[j + 1], a2 = blk.decay[j + 2],
-                   a3 = blk.decay[j + 3];
-      const double w0 = blk.weights[j], w1 = blk.weights[j + 1], w2 = blk.weights[j + 2],
-                   w3 = blk.weights[j + 3];
-      FRACVI_INDEPENDENT_ITERATIONS
-      for (Eigen::Index i = 0; i < n; ++i) {
-        const double v0 = a0 * y0[i] + x[i], v1 = a1 * y1[i] + x[i];
-        const double v2 = a2 * y2[i] + x[i], v3 = a3 * y3[i] + x[i];
-        y0[i] = v0;
-        y1[i] = v1;
-        y2[i] = v2;
-        y3[i] = v3;
-        tail[i] += (w0 * v0 + w1 * v1) + (w2 * v2 + w3 * v3);
-      }
-    }
-    for (; j < terms; ++j) {
-      double* __restrict y = state + j * stride;
-      const double a = blk.decay[j], w = blk.weights[j];
-      for (Eigen::Index i = 0; i < n; ++i) {
-        const double yi = a * y[i] + x[i];
-        y[i] = yi;
-        tail[i] += w * yi;
-      }
+  Eigen::Index j = 0;
+  if (terms >= 4) {
+    recursion_group<true>(blk, 0);
+    j = 4;
+  } else {
+    for (Eigen::Index i = 0; i < n; ++i) blk.tail[i] = 0.0;  // no recursions yet: the tail is 0
+  }
+  for (; j + 4 <= terms; j += 4) recursion_group<false>(blk, j);
+  double* __restrict tail = blk.tail;
+  const double* __restrict x = blk.leaving;
+  for (; j < terms; ++j) {
+    double* __restrict y = state + j * stride;
+    const double a = blk.decay[j], w = blk.weights[j];
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double yi = a * y[i] + x[i];
+      y[i] = yi;
+      tail[i] += w * yi;
     }
   }
 }
