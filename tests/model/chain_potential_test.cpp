@@ -48,24 +48,24 @@ ChainOptions options(Eigen::Index d, ChainBoundary boundary) {
   return o;
 }
 
-class ChainVsFormula : public ::testing::TestWithParam<ChainBoundary> {};
-
-TEST_P(ChainVsFormula, ValueGradientHessianAgree) {
-  constexpr Eigen::Index kD = 7;
-  const ChainPotential chain(options(kD, GetParam()));
-  const ExpressionPotential formula(kD, chain_formula(kD, GetParam()));
-  std::mt19937 rng(5);
+// The chain with options o against the formula, at five random states: value, gradient, dense
+// and sparse Hessian, and the sparsity pattern.
+void expect_chain_matches_formula(const ChainOptions& o, bool linear, unsigned seed) {
+  const Eigen::Index d = o.dimension;
+  const ChainPotential chain(o);
+  const ExpressionPotential formula(d, chain_formula(d, o.boundary, linear));
+  std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-0.8, 0.8);
   for (int trial = 0; trial < 5; ++trial) {
-    Eigen::VectorXd x(kD);
+    Eigen::VectorXd x(d);
     for (auto& xi : x) xi = u(rng);
     const double scale = std::abs(formula.value(x, 0.0)) + 1.0;
     EXPECT_NEAR(chain.value(x, 0.0), formula.value(x, 0.0), 1e-14 * scale);
-    Eigen::VectorXd g1(kD), g2(kD);
+    Eigen::VectorXd g1(d), g2(d);
     chain.gradient(x, 0.0, g1);
     formula.gradient(x, 0.0, g2);
     EXPECT_LE((g1 - g2).cwiseAbs().maxCoeff(), 1e-13);
-    Eigen::MatrixXd h1(kD, kD), h2(kD, kD);
+    Eigen::MatrixXd h1(d, d), h2(d, d);
     chain.hessian(x, 0.0, h1);
     formula.hessian(x, 0.0, h2);
     EXPECT_LE((h1 - h2).cwiseAbs().maxCoeff(), 1e-13);
@@ -74,7 +74,7 @@ TEST_P(ChainVsFormula, ValueGradientHessianAgree) {
     const auto pattern = chain.hessian_pattern();
     std::vector<double> values(pattern.size());
     chain.hessian_values(x, 0.0, values);
-    Eigen::MatrixXd from_sparse = Eigen::MatrixXd::Zero(kD, kD);
+    Eigen::MatrixXd from_sparse = Eigen::MatrixXd::Zero(d, d);
     for (std::size_t e = 0; e < pattern.size(); ++e) {
       ASSERT_LE(pattern[e].row, pattern[e].col);
       from_sparse(pattern[e].row, pattern[e].col) += values[e];
@@ -90,26 +90,18 @@ TEST_P(ChainVsFormula, ValueGradientHessianAgree) {
   }
 }
 
+class ChainVsFormula : public ::testing::TestWithParam<ChainBoundary> {};
+
+TEST_P(ChainVsFormula, ValueGradientHessianAgree) {
+  expect_chain_matches_formula(options(7, GetParam()), false, 5);
+}
+
 // A linear chain (cubic = quartic = 0) has its own interior kernels (chain_potential.cpp): d = 37
 // puts a vector body and a remainder in them, for every boundary.
 TEST_P(ChainVsFormula, LinearChainKernelsAgree) {
-  constexpr Eigen::Index kD = 37;
-  ChainOptions o = options(kD, GetParam());
+  ChainOptions o = options(37, GetParam());
   o.cubic = o.quartic = 0.0;
-  const ChainPotential chain(o);
-  const ExpressionPotential formula(kD, chain_formula(kD, GetParam(), true));
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<double> u(-0.8, 0.8);
-  for (int trial = 0; trial < 5; ++trial) {
-    Eigen::VectorXd x(kD);
-    for (auto& xi : x) xi = u(rng);
-    const double scale = std::abs(formula.value(x, 0.0)) + 1.0;
-    EXPECT_NEAR(chain.value(x, 0.0), formula.value(x, 0.0), 1e-14 * scale);
-    Eigen::VectorXd g1(kD), g2(kD);
-    chain.gradient(x, 0.0, g1);
-    formula.gradient(x, 0.0, g2);
-    EXPECT_LE((g1 - g2).cwiseAbs().maxCoeff(), 1e-14);
-  }
+  expect_chain_matches_formula(o, true, 11);
 }
 
 INSTANTIATE_TEST_SUITE_P(Boundaries, ChainVsFormula,
