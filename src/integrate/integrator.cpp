@@ -605,9 +605,7 @@ struct Integrator::Impl {
   }
 
   void init_health() {
-    for (Eigen::Index i = 0; i < d; ++i) {
-      mass_weights[i] = std::sqrt(std::max(0.0, problem.model.mass.coeff(i, i)));
-    }
+    mass_weights = Stepper::health_weights(problem.model.mass);
     const double x0 = mass_norm(problem.x0);
     state_base = x0 + span * mass_norm(problem.v0);
     running_max = checkpoint_max = x0;

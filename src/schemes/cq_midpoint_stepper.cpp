@@ -85,12 +85,9 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
   if (fused_passes_) {
     tilde_x0_ = shift_x0_ ? problem.x0 : Eigen::VectorXd::Zero(d_);
     tilde_v0_ = shift_v0_ ? problem.v0 : Eigen::VectorXd::Zero(d_);
-    // The health check's weights √M_ii, as the Integrator forms them (its mass_norm).
-    if (d_ >= kVectorPassesFrom && !mass_solver_.unit_mass()) {
-      root_mass_.resize(d_);
-      for (Eigen::Index i = 0; i < d_; ++i)
-        root_mass_[i] = std::sqrt(std::max(0.0, problem.model.mass.coeff(i, i)));
-    }
+    // The health check's weights √M_ii, as the Integrator takes them (its mass_norm).
+    if (d_ >= kVectorPassesFrom && !mass_solver_.unit_mass())
+      root_mass_ = health_weights(problem.model.mass);
   }
   g_mid_.setZero(d_);
 

@@ -1,6 +1,7 @@
 #include "fracvi/schemes/stepper.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdarg>
 #include <cstdio>
 #include <exception>
@@ -10,6 +11,13 @@
 #include "fracvi/solve/midpoint_newton.hpp"
 
 namespace fracvi {
+
+Eigen::VectorXd Stepper::health_weights(const ModelMatrix& mass) {
+  const Eigen::Index d = mass.rows();
+  Eigen::VectorXd w(d);
+  for (Eigen::Index i = 0; i < d; ++i) w[i] = std::sqrt(std::max(0.0, mass.coeff(i, i)));
+  return w;
+}
 
 Status Stepper::step() noexcept {
   message_[0] = '\0';

@@ -156,6 +156,9 @@ class Stepper {
     double mass_squares = 0.0;  // Σ (√M_ii x_k,i)², the health check's ‖x_k‖²_M (diagonal M)
   };
   [[nodiscard]] const StepSums& step_sums() const { return step_sums_; }
+  /// The health check's weights √M_ii (0 where M_ii ≤ 0), as the Integrator and a step that
+  /// forms StepSums::mass_squares both take them. Set-up only (allocates).
+  [[nodiscard]] static Eigen::VectorXd health_weights(const ModelMatrix& mass);
 
   /// Why the last step failed (empty after a successful step), and the exception text of a
   /// throwing callback (else empty).
