@@ -1,7 +1,7 @@
 // The measured thread count of the fast histories' push (internal/team_chooser.hpp):
 //  * the trial / hold cycle of TeamChooser on synthetic call times and periods (which count it
-//    picks, when it measures again, the untimed warm-up calls, that a requested count is used as
-//    given);
+//    picks, when it measures again, the untimed warm-up calls, the trials' minimum time, the two
+//    guards against a team slower than one thread, that a requested count is used as given);
 //  * the choice never changes a result: FastHistory and FastBlockHistory sums with threads = 0
 //    (measured: one thread for the first trial's calls, the team for the second's, then the
 //    faster) are bitwise those of threads = 1 and of a fixed team of 2, over pushes that cover
@@ -30,17 +30,22 @@ namespace {
 
 using internal::TeamChooser;
 constexpr int kTrial = TeamChooser::kTrialCalls;
+constexpr int kTimed = TeamChooser::kTrialCalls - TeamChooser::kWarmCalls;
 
-// Runs one trial cycle with the given per-call times; returns the count chosen for the hold.
-int trial(TeamChooser& team, double one_thread_seconds, double team_seconds) {
-  for (int i = 0; i < kTrial; ++i) {
-    EXPECT_EQ(team.next(), 1) << "call " << i << " of the one-thread trial";
-    team.record(one_thread_seconds);
-  }
-  for (int i = 0; i < kTrial; ++i) {
-    EXPECT_EQ(team.next(), team.team()) << "call " << i << " of the team trial";
+// Runs one trial cycle with the given per-call times (each trial until its end, at most 10^6
+// calls); returns the count chosen for the hold. `team_calls`, if given: the team trial's calls.
+int trial(TeamChooser& team, double one_thread_seconds, double team_seconds,
+          int* team_calls = nullptr) {
+  EXPECT_TRUE(team.in_trial());
+  int calls = 0;
+  for (; team.next() == 1 && calls < 1'000'000; ++calls) team.record(one_thread_seconds);
+  EXPECT_GE(calls, kTrial) << "the one-thread trial";
+  int on_team = 0;
+  for (; team.in_trial() && on_team < 1'000'000; ++on_team) {
+    EXPECT_EQ(team.next(), team.team()) << "call " << on_team << " of the team trial";
     team.record(team_seconds);
   }
+  if (team_calls != nullptr) *team_calls = on_team;
   return team.next();
 }
 
@@ -48,12 +53,15 @@ TEST(TeamChooser, PicksTheFasterCountAndMeasuresAgainAfterTheHold) {
   TeamChooser team;
   team.configure(0, 2);
   ASSERT_TRUE(team.measuring());
-  EXPECT_EQ(trial(team, 1e-3, 0.6e-3), 2);  // the team is faster: held on 2 threads
+  int team_calls = 0;
+  EXPECT_EQ(trial(team, 1e-3, 0.6e-3, &team_calls), 2);  // the team is faster: held on 2 threads
+  EXPECT_EQ(team_calls, kTrial);
   // The hold lasts max(0.5 s, 32 × the trials' timed 2 × 14 calls, 22.4 ms) = 0.72 s of calls.
-  const double hold = 32.0 * (kTrial - TeamChooser::kWarmCalls) * (1e-3 + 0.6e-3);
+  const double hold = 32.0 * kTimed * (1e-3 + 0.6e-3);
   const int calls = static_cast<int>(hold / 0.6e-3);
   for (int i = 0; i < calls - 1; ++i) {
     ASSERT_EQ(team.next(), 2) << "hold call " << i;
+    ASSERT_FALSE(team.in_trial()) << "hold call " << i;
     team.record(0.6e-3);
   }
   team.record(2 * 0.6e-3);  // the hold is over: trials again, and now the machine is busy
@@ -67,6 +75,7 @@ TEST(TeamChooser, WarmUpCallsAreNotTimedAndRestartMeasuresAgain) {
   for (int i = 0; i < kTrial; ++i) team.record(1e-3);
   for (int i = 0; i < kTrial; ++i) team.record(i < TeamChooser::kWarmCalls ? 50e-3 : 0.5e-3);
   EXPECT_EQ(team.next(), 2);
+  EXPECT_FALSE(team.in_trial());
   // Negative control: the same slow call after the warm-up counts.
   team.restart();
   EXPECT_EQ(team.next(), 1);
@@ -75,26 +84,90 @@ TEST(TeamChooser, WarmUpCallsAreNotTimedAndRestartMeasuresAgain) {
   EXPECT_EQ(team.next(), 1);
 }
 
-TEST(TeamChooser, ShortCallsHoldForHalfASecond) {
+TEST(TeamChooser, ShortCallsAreTriedForTwoMillisecondsAndHeldForHalfASecond) {
   TeamChooser team;
   team.configure(0, 4);
-  EXPECT_EQ(trial(team, 20e-6, 30e-6), 1);
+  // 20 µs calls: the one-thread trial needs 100 timed calls (2 ms) besides its 2 warm-up calls.
+  int team_calls = 0;
+  EXPECT_EQ(trial(team, 20e-6, 19e-6, &team_calls), 4);
+  EXPECT_EQ(team_calls, TeamChooser::kWarmCalls + 106) << "2 ms of 19 µs calls (the sum rounds)";
+  team.restart();
+  EXPECT_EQ(trial(team, 20e-6, 30e-6, &team_calls), 1);
+  // Guard (1): the team's calls took longer than one thread's 100 after 67 of its own.
+  EXPECT_EQ(team_calls, TeamChooser::kWarmCalls + 67);
   // One thread for the hold and then for the next one-thread trial, until the team's trial.
   int calls = 0;
   while (team.next() == 1 && calls < 1'000'000) {
     team.record(20e-6);
     ++calls;
   }
-  // The hold ends once 0.5 s (not 32 × 0.8 ms) has been held: 25 000 calls of 20 µs (to one call:
-  // the sum of the times rounds), then the kTrial calls of the next one-thread trial.
-  EXPECT_NEAR(calls - kTrial, TeamChooser::kHoldSeconds / 20e-6, 1.0);
+  // The hold ends once 0.5 s (not 32 × 3.3 ms) has been held: 25 000 calls of 20 µs (to one call:
+  // the sum of the times rounds), then the 102 calls of the next one-thread trial.
+  EXPECT_NEAR(calls - (TeamChooser::kWarmCalls + 100), TeamChooser::kHoldSeconds / 20e-6, 1.0);
   EXPECT_EQ(team.next(), 4);
+}
+
+// A virtual machine whose second core is taken away in bursts (steal time): the team's trial can
+// fall between bursts and its hold then run far slower than one thread. Guard (1) ends a losing
+// team trial early; guard (2) gives the rest of a hold to one thread once the held team's mean is
+// above the one-thread trial's.
+TEST(TeamChooser, ATeamSlowerThanOneThreadLosesItsTrialAndItsHold) {
+  {
+    TeamChooser team;
+    team.configure(0, 2);
+    int team_calls = 0;
+    // 20 times slower: lost at the first timed call (20 ms > the 14 ms of one thread's trial).
+    EXPECT_EQ(trial(team, 1e-3, 20e-3, &team_calls), 1);
+    EXPECT_EQ(team_calls, TeamChooser::kWarmCalls + 1);
+  }
+  const auto hold_after_burst = [](double burst_seconds) {
+    TeamChooser team;
+    team.configure(0, 2);
+    EXPECT_EQ(trial(team, 1e-3, 0.6e-3), 2);
+    for (int i = 0; i < 200; ++i) {
+      EXPECT_EQ(team.next(), 2) << "hold call " << i;
+      team.record(0.6e-3);
+    }
+    team.record(burst_seconds);  // the other core was taken away for this call
+    return team.next();
+  };
+  // 200 calls of 0.6 ms and one of 100 ms: a mean of 1.09 ms against one thread's 1 ms.
+  EXPECT_EQ(hold_after_burst(100e-3), 1);
+  // Negative control: a burst of 70 ms leaves the mean at 0.945 ms, and the team keeps the hold.
+  EXPECT_EQ(hold_after_burst(70e-3), 2);
+  {
+    // Held calls steadily slower than the team's trial but faster than one thread: kept for the
+    // whole hold (0.72 s: 757 calls of 0.95 ms).
+    TeamChooser team;
+    team.configure(0, 2);
+    EXPECT_EQ(trial(team, 1e-3, 0.6e-3), 2);
+    for (int i = 0; i < 750; ++i) {
+      ASSERT_EQ(team.next(), 2) << "hold call " << i;
+      team.record(0.95e-3);
+    }
+    // Held calls slower than one thread: one thread from the kTrial-th on, for the rest of the
+    // hold, and then trials again.
+    TeamChooser slow;
+    slow.configure(0, 2);
+    EXPECT_EQ(trial(slow, 1e-3, 0.6e-3), 2);
+    for (int i = 0; i < kTrial; ++i) {
+      ASSERT_EQ(slow.next(), 2) << "hold call " << i;
+      slow.record(1.2e-3);
+    }
+    EXPECT_EQ(slow.next(), 1);
+    EXPECT_FALSE(slow.in_trial());
+    int calls = 0;
+    for (; !slow.in_trial() && calls < 1'000'000; ++calls) slow.record(1e-3);
+    // The hold of 0.72 s (the test above) less the 19.2 ms held on the team.
+    EXPECT_NEAR(calls, (32.0 * kTimed * 1.6e-3 - kTrial * 1.2e-3) / 1e-3, 1.0);
+  }
 }
 
 TEST(TeamChooser, RequestedCountsAndSmallWorkAreNotMeasured) {
   TeamChooser team;
   team.configure(3, 3);
   EXPECT_FALSE(team.measuring());
+  EXPECT_FALSE(team.in_trial());
   EXPECT_EQ(team.next(), 3);
   team.configure(0, 1);  // below the work threshold
   EXPECT_FALSE(team.measuring());
@@ -110,23 +183,31 @@ TEST(TeamChooser, RequestedCountsAndSmallWorkAreNotMeasured) {
 // the caller's step) — the period decides.
 TEST(TeamChooser, PeriodsDecideForCallersTimedByPeriod) {
   using Clock = std::chrono::steady_clock;
-  const auto choose = [](double one_period, double team_period) {
+  // The counts of the first `calls` calls, and the count after them.
+  const auto choose = [](double one_period, double team_period, int calls) {
     TeamChooser team;
     team.configure(0, 2);
     Clock::time_point now = Clock::now();
     std::vector<int> counts;
-    for (int i = 0; i < 2 * kTrial + 1; ++i) {
+    for (int i = 0; i < calls + 1; ++i) {
       const int threads = team.next_by_period(now);
       counts.push_back(threads);
       now += std::chrono::duration_cast<Clock::duration>(
           std::chrono::duration<double>(threads == 1 ? one_period : team_period));
     }
-    // The trials ran one thread, then the team, each for kTrial calls.
-    for (int i = 0; i < 2 * kTrial; ++i) EXPECT_EQ(counts[i], i < kTrial ? 1 : 2) << "call " << i;
-    return counts.back();
+    return counts;
   };
-  EXPECT_EQ(choose(1e-3, 1.2e-3), 1);  // the team's steps are slower: one thread
-  EXPECT_EQ(choose(1e-3, 0.6e-3), 2);  // and the other way round
+  // The trials run one thread, then the team, each for kTrial calls; the team's steps are faster.
+  std::vector<int> counts = choose(1e-3, 0.6e-3, 2 * kTrial);
+  for (int i = 0; i < 2 * kTrial; ++i) EXPECT_EQ(counts[i], i < kTrial ? 1 : 2) << "call " << i;
+  EXPECT_EQ(counts.back(), 2);
+  // The team's steps are slower: its trial is lost after 12 timed periods (14.4 ms > 14 ms).
+  counts = choose(1e-3, 1.2e-3, 2 * kTrial);
+  const int lost_after = kTrial + TeamChooser::kWarmCalls + 12;
+  for (int i = 0; i < 2 * kTrial; ++i) {
+    EXPECT_EQ(counts[i], i < kTrial || i >= lost_after ? 1 : 2) << "call " << i;
+  }
+  EXPECT_EQ(counts.back(), 1);
   // Negative control: only the first period of each trial differs (a warm-up call), not counted.
   TeamChooser team;
   team.configure(0, 2);
@@ -139,6 +220,7 @@ TEST(TeamChooser, PeriodsDecideForCallersTimedByPeriod) {
   }
   EXPECT_EQ(team.next_by_period(now), 2);
 }
+
 Eigen::MatrixXd rough_input(Eigen::Index rows, Eigen::Index columns) {
   std::mt19937_64 gen(7);
   std::normal_distribution<double> normal(0.0, 1.0);

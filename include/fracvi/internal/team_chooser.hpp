@@ -13,26 +13,33 @@ namespace fracvi::internal {
 /// only from a few thousand degrees of freedom, and on a machine busy with other work every
 /// parallel region waits for a core that is not free (fvi-lobatto3, d = 1000: 5 times slower on
 /// two threads than on one at load 5; bench/RESULTS.md). So, with threads = 0 (auto) and work at
-/// or above the threshold, the loop alternates trials — kTrialCalls calls on one thread, then as
-/// many on the team, the first kWarmCalls of each not timed (the data move to the other core's
-/// cache, a sleeping thread wakes) — keeps the faster for a hold of at least kHoldSeconds (and 32
-/// times the trials' time, so that trials cost at most a few per cent), and measures again. The
-/// caller restarts the trials when its work per call changes (a history once its window is full).
+/// or above the threshold, the loop alternates trials — one thread, then the team, each at least
+/// kTrialCalls calls and kTrialSeconds of timed calls, the first kWarmCalls of each not timed (the
+/// data move to the other core's cache, a sleeping thread wakes) — keeps the faster for a hold of
+/// at least kHoldSeconds (and 32 times the trials' time, so that trials cost at most a few per
+/// cent), and measures again. The caller restarts the trials when its work per call changes (a
+/// history once its window is full).
+///
+/// Two guards keep the team from costing more than one thread would. A machine whose second core
+/// is taken away in bursts (a virtual machine with steal time) makes the team's calls 10–20 times
+/// slower while it lasts, and a short trial can fall between bursts (d = 1000 on the 2-vCPU
+/// machine: a team trial of 14.7 µs a step, then a hold at 31.8 µs against one thread's 18.1;
+/// bench/RESULTS.md). (1) The team's trial ends as lost as soon as its timed calls have taken
+/// longer than the one-thread trial's, in no more calls (a team 20 times slower costs one trial's
+/// time, not twenty). (2) While the team is held, the held calls' mean is compared with the
+/// one-thread trial's after every call from the kTrialCalls-th; once above, one thread takes the
+/// rest of the hold. So a burst costs the team its hold, and the time a hold can lose is bounded
+/// by one trial's and one burst's.
+///
 /// Each degree of freedom's arithmetic does not depend on the partition, so the choice never
 /// changes a result. requested ≥ 1 is used as given (above the threshold). No allocation, no system
 /// call but the clock's.
 ///
-/// What is timed: the call itself (record() after the call, for_blocks in parallel.hpp), or — for a
-/// caller whose team keeps working after the call returns (FastHistory's run-ahead thread) — the
-/// period from one call's start to the next's (next_by_period()). There the call's own time hides
-/// what the overlap costs the rest of the caller's step: at d = 2·10^4 on the 2-vCPU machine, runs
-/// forced onto the team took 210 or 470–500 µs per step (two modes, run to run) against 390–560 on
-/// one thread, and the call-timed choice kept the team in a run at 0.89× of one thread
-/// (bench/RESULTS.md, "never slower than one core").
 class TeamChooser {
  public:
   static constexpr int kTrialCalls = 16;
   static constexpr int kWarmCalls = 2;
+  static constexpr double kTrialSeconds = 2e-3;
   static constexpr double kHoldSeconds = 0.5;
 
   /// requested: 0 = measured, n ≥ 1 = n threads; team: the threads a call may use
@@ -48,7 +55,7 @@ class TeamChooser {
   /// Starts a new pair of trials (the calls so far do not represent the ones to come).
   void restart() {
     phase_ = Phase::kTrialOne;
-    calls_ = 0;
+    calls_ = one_calls_ = team_calls_ = 0;
     one_ = team_time_ = 0.0;
   }
   /// The largest team a call may use (for start_threads at set-up).
@@ -56,6 +63,8 @@ class TeamChooser {
   /// Whether the calls are timed (threads = 0 above the threshold): then each next() is followed
   /// by record() with the call's wall time.
   [[nodiscard]] bool measuring() const { return adaptive_; }
+  /// Whether the next call is one of a trial's (not of a hold).
+  [[nodiscard]] bool in_trial() const { return adaptive_ && phase_ != Phase::kHold; }
   /// The thread count of the next call.
   [[nodiscard]] int next() const {
     if (!adaptive_) return team_;
@@ -76,23 +85,38 @@ class TeamChooser {
   void record(double seconds) {
     switch (phase_) {
       case Phase::kTrialOne:
-        if (calls_ >= kWarmCalls) one_ += seconds;
-        if (++calls_ == kTrialCalls) {
+        if (calls_ >= kWarmCalls) {
+          one_ += seconds;
+          ++one_calls_;
+        }
+        if (++calls_ >= kTrialCalls && one_ >= kTrialSeconds) {
           phase_ = Phase::kTrialTeam;
           calls_ = 0;
         }
         return;
-      case Phase::kTrialTeam:
-        if (calls_ >= kWarmCalls) team_time_ += seconds;
-        if (++calls_ == kTrialCalls) {
-          chosen_ = team_time_ < one_ ? team_ : 1;
-          hold_ = std::max(kHoldSeconds, 32.0 * (one_ + team_time_));
-          phase_ = Phase::kHold;
-          held_ = 0.0;
+      case Phase::kTrialTeam: {
+        if (calls_ >= kWarmCalls) {
+          team_time_ += seconds;
+          ++team_calls_;
         }
+        ++calls_;
+        // Guard (1): in no more calls than one thread's trial, and already longer.
+        const bool lost = team_calls_ <= one_calls_ && team_time_ > one_;
+        if (!lost && (calls_ < kTrialCalls || team_time_ < kTrialSeconds)) return;
+        chosen_ = !lost && team_time_ / team_calls_ < one_ / one_calls_ ? team_ : 1;
+        hold_ = std::max(kHoldSeconds, 32.0 * (one_ + team_time_));
+        phase_ = Phase::kHold;
+        held_ = 0.0;
+        held_calls_ = 0;
         return;
+      }
       case Phase::kHold:
         held_ += seconds;
+        ++held_calls_;
+        // Guard (2): the held team's mean against the one-thread trial's.
+        if (chosen_ != 1 && held_calls_ >= kTrialCalls && held_ * one_calls_ > one_ * held_calls_) {
+          chosen_ = 1;
+        }
         if (held_ >= hold_) restart();
         return;
     }
@@ -104,7 +128,8 @@ class TeamChooser {
   int team_ = 1;
   bool adaptive_ = false;
   Phase phase_ = Phase::kTrialOne;
-  int calls_ = 0;
+  int calls_ = 0;  // the trial's calls so far, warm-up included
+  int one_calls_ = 0, team_calls_ = 0, held_calls_ = 0;  // the timed calls of each phase
   double one_ = 0.0, team_time_ = 0.0, held_ = 0.0, hold_ = kHoldSeconds;
   int chosen_ = 1;
   std::chrono::steady_clock::time_point period_start_{};  // next_by_period(): the last call's start
