@@ -40,6 +40,7 @@
 #include "fracvi/memory/history.hpp"
 #include "fracvi/schemes/stepper.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
+#include "fracvi/solve/vector_passes.hpp"
 #include "mass_solver.hpp"
 #include "mirror_run.hpp"
 #include "scheme_rows.hpp"
@@ -85,6 +86,12 @@ class TrapezoidalMidpointStepper final : public Stepper {
       vec->setZero(d_);
     }
     if (damped_) memory_ = make_memory();
+    // Diagonal M and R' (every chain) from kVectorPassesFrom: the step around Newton's solve is two
+    // passes (trapezoid_known_pass, trapezoid_step_pass) instead of about twenty Eigen
+    // expressions; smaller systems keep those (and their bits: the second pass sums G·Δ in another
+    // order than Eigen's dot).
+    fused_passes_ = damped_ && d_ >= kVectorPassesFrom && mass_solver_.diagonal() != nullptr &&
+                    force_matrix_.stored_diagonal() != nullptr;
     x_cur_ = problem.x0;
     v_cur_ = problem.v0;
     mass_.multiply(problem.v0, p_);
@@ -162,6 +169,7 @@ class TrapezoidalMidpointStepper final : public Stepper {
   double current_weight_;
   TaylorCellForce polynomial_force_;
   bool split_ = false;
+  bool fused_passes_ = false;  // trapezoid_step_pass (constructor)
 
   ModelMatrix mass_, damping_, force_matrix_;
   MassSolver mass_solver_;
@@ -190,48 +198,70 @@ Status TrapezoidalMidpointStepper::advance() {
   // (G^P_{−1} = 0); x̃̄_k = x_k + Δ/2 − P(t_{k+½}) holds the unknown. Only Ĝ enters: the split
   // G_k = 2Ĝ_k − G_{k−1} is needed for the output momentum alone, so its rounding (a neutral,
   // alternating mode of the pair (p, G)) cannot reach the trajectory.
+  // (M + (h²/2) ω̂_0 R')Δ + (h²/2)∇U_f(x_k + Δ/2) = h q_k − h² (known part of Ĝ_k).
   if (damped_) {
     memory_->known(k, sum_);
-    mid_tilde_ = xk;
-    subtract_polynomial_midpoint(k, mid_tilde_);
-    tmp_ = current_weight_ * mid_tilde_ + sum_;
-    force_matrix_.multiply(tmp_, g_hat_);
     polynomial_force(k, g_poly_);
-    g_hat_ += 0.5 * (g_poly_ + g_poly_prev_);
   }
-  // (M + (h²/2) ω̂_0 R')Δ + (h²/2)∇U_f(x_k + Δ/2) = h q_k − h² (known part of Ĝ_k).
-  rhs_ = h_ * q_;
-  if (damped_) rhs_ -= (h_ * h_) * g_hat_;
+  if (fused_passes_) {
+    trapezoid_known_pass(force_matrix_.stored_diagonal()->data(), xk.data(),
+                         split_ ? problem_.x0.data() : nullptr, (static_cast<double>(k) + 0.5) * h_,
+                         problem_.v0.data(), current_weight_, sum_.data(), g_poly_.data(),
+                         g_poly_prev_.data(), q_.data(), h_, mid_tilde_.data(), rhs_.data(), d_);
+  } else {
+    if (damped_) {
+      mid_tilde_ = xk;
+      subtract_polynomial_midpoint(k, mid_tilde_);
+      tmp_ = current_weight_ * mid_tilde_ + sum_;
+      force_matrix_.multiply(tmp_, g_hat_);
+      g_hat_ += 0.5 * (g_poly_ + g_poly_prev_);
+    }
+    rhs_ = h_ * q_;
+    if (damped_) rhs_ -= (h_ * h_) * g_hat_;
+  }
   if (k == 0) dx_ = h_ * problem_.v0;  // predictor; afterwards the previous increment
   const NewtonReport report = newton_.solve(xk, t_half, rhs_, f_ptr, dx_);
   if (const Status s = newton_outcome(report, "M + (h^2/2) w0 h^-2alpha R + (h^2/4) Hess U");
       s != Status::kSuccess)
     return s;
-  x_next_ = xk + dx_;
-  if (!x_next_.allFinite()) return fail(Status::kNonFinite, "non-finite position");
-
-  // q_{k+1} = MΔ_k/h − (h/2)∇U_f(x̄_k) = 2MΔ_k/h − q_k + hĜ_k.
-  mass_.multiply(dx_, p_next_);
-  q_ = p_next_ * (2.0 / h_) - q_;
-  if (damped_) {
-    // x̃̄_k and the full Ĝ_k; then G̃_k = 2Ĝ̃_k − G̃_{k−1} and G_k = G̃_k + G^P_k.
-    mid_tilde_ += 0.5 * dx_;
-    tmp_ = current_weight_ * mid_tilde_ + sum_;
-    force_matrix_.multiply(tmp_, g_total_);  // Ĝ̃_k (x̃ part)
-    g_tilde_ = 2.0 * g_total_ - g_tilde_;
-    q_ += h_ * g_total_;
-    q_ += (0.5 * h_) * (g_poly_ + g_poly_prev_);
-    g_total_ = g_tilde_ + g_poly_;
+  TrapezoidPass fused;  // the pass below, for diagonal M and R' from kVectorPassesFrom
+  if (fused_passes_) {
+    fused = trapezoid_step_pass(mass_solver_.diagonal()->data(), mass_solver_.unit_mass(),
+                                force_matrix_.stored_diagonal()->data(), xk.data(), dx_.data(),
+                                2.0 / h_, current_weight_, sum_.data(), g_poly_.data(),
+                                g_poly_prev_.data(), h_, x_next_.data(), q_.data(),
+                                mid_tilde_.data(), g_tilde_.data(), g_total_.data(), p_.data(),
+                                v_cur_.data(), diagnostics_, d_);
+    if (!fused.finite_position) return fail(Status::kNonFinite, "non-finite position");
     g_poly_prev_.swap(g_poly_);
     memory_->push(k, mid_tilde_);
+  } else {
+    x_next_ = xk + dx_;
+    if (!x_next_.allFinite()) return fail(Status::kNonFinite, "non-finite position");
+
+    // q_{k+1} = MΔ_k/h − (h/2)∇U_f(x̄_k) = 2MΔ_k/h − q_k + hĜ_k.
+    mass_.multiply(dx_, p_next_);
+    q_ = p_next_ * (2.0 / h_) - q_;
+    if (damped_) {
+      // x̃̄_k and the full Ĝ_k; then G̃_k = 2Ĝ̃_k − G̃_{k−1} and G_k = G̃_k + G^P_k.
+      mid_tilde_ += 0.5 * dx_;
+      tmp_ = current_weight_ * mid_tilde_ + sum_;
+      force_matrix_.multiply(tmp_, g_total_);  // Ĝ̃_k (x̃ part)
+      g_tilde_ = 2.0 * g_total_ - g_tilde_;
+      q_ += h_ * g_total_;
+      q_ += (0.5 * h_) * (g_poly_ + g_poly_prev_);
+      g_total_ = g_tilde_ + g_poly_;
+      g_poly_prev_.swap(g_poly_);
+      memory_->push(k, mid_tilde_);
+    }
+    // The node momentum (right Legendre transform of cell k): p_{k+1} = q_{k+1} − (h/2)G_k.
+    p_ = q_;
+    if (damped_) p_ -= (0.5 * h_) * g_total_;
   }
-  // The node momentum (right Legendre transform of cell k): p_{k+1} = q_{k+1} − (h/2)G_k.
-  p_ = q_;
-  if (damped_) p_ -= (0.5 * h_) * g_total_;
   if (diagnostics_) {
     // E_{k+1} − E_k = −(G_k − f)·Δ_k for quadratic U (the midpoint rule: ∇U(x̄)·Δ = ΔU), plus
     // the explicit time dependence of U.
-    if (damped_) work_ += g_total_.dot(dx_);
+    if (damped_) work_ += fused_passes_ ? fused.work : g_total_.dot(dx_);
     // Subtracted term by term as before (bit-for-bit the same W_k), and summed for supplied_.
     if (has_forcing_) {
       const double fw = f_mid_.dot(dx_);
@@ -252,8 +282,9 @@ Status TrapezoidalMidpointStepper::advance() {
       supplied_ += du;
     }
   }
-  mass_solver_.inverse(p_, v_cur_);
-  if (!v_cur_.allFinite()) return fail(Status::kNonFinite, "non-finite velocity");
+  if (!fused_passes_) mass_solver_.inverse(p_, v_cur_);
+  if (!(fused_passes_ ? fused.finite_velocity : v_cur_.allFinite()))
+    return fail(Status::kNonFinite, "non-finite velocity");
   if (k == 0) x_first_ = x_next_;  // the mirror run starts from x_0, x_1
   x_cur_.swap(x_next_);
   ++k_;

@@ -76,6 +76,25 @@ MomentumPass new_momentum(const double* r, const double* sum, const double* p_mi
 }
 
 FRACVI_HOT_KERNEL
+void trapezoid_known(const double* r, const double* x, const double* x0, double t, const double* v0,
+                     double w, const double* sum, const double* g_poly, const double* g_poly_prev,
+                     const double* q, double h, double* mid_tilde, double* rhs, Eigen::Index n) {
+  loops::trapezoid_known<true>(r, x, x0, t, v0, w, sum, g_poly, g_poly_prev, q, h, mid_tilde, rhs,
+                               n);
+}
+
+FRACVI_HOT_KERNEL
+TrapezoidPass trapezoid_step(const double* m, bool unit_mass, const double* r, const double* a,
+                             const double* increment, double s, double w, const double* sum,
+                             const double* g_poly, const double* g_poly_prev, double h,
+                             double* next, double* q, double* mid_tilde, double* g_tilde,
+                             double* g_total, double* p, double* v, bool with_work,
+                             Eigen::Index n) {
+  return loops::trapezoid_step<true>(m, unit_mass, r, a, increment, s, w, sum, g_poly, g_poly_prev,
+                                     h, next, q, mid_tilde, g_tilde, g_total, p, v, with_work, n);
+}
+
+FRACVI_HOT_KERNEL
 double dot(const double* a, const double* b, Eigen::Index n) {
   return loops::dot<true>(a, b, n);
 }

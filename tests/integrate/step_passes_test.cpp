@@ -2,7 +2,9 @@
 // new_momentum_pass, solve/vector_passes.hpp) against the passes they replace, applied one after
 // another: the same numbers bit for bit, below kVectorPassesFrom (the inlined loops) and above it
 // (the kernels and their x86-64-v3 clones), the sums they form for the Integrator (v·p, ‖x‖²_M)
-// bit for bit those of its own passes, and the same finiteness verdicts.
+// bit for bit those of its own passes, and the same finiteness verdicts. fvi-midpoint's two
+// passes against its Eigen expressions: bit for bit below kVectorPassesFrom, to round-off above
+// (FMAs in the clone).
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -172,6 +174,120 @@ TEST(StepPasses, NonFiniteValuesAreReported) {
       EXPECT_FALSE(new_momentum_pass(m.data(), sum.data(), x.data(), 0.5, m.data(), unit,
                                      out1.data(), out2.data(), out3.data(), out4.data(), false, n)
                        .finite);
+    }
+  }
+}
+
+// Equal to round-off: below kVectorPassesFrom bit for bit (the inlined loops, compiled like the
+// Eigen expressions); above it the x86-64-v3 clone fuses a·b + c into FMAs on CPUs with AVX2, so
+// each element may differ by a few roundings of its largest term.
+void expect_round_off_equal(const Eigen::VectorXd& a, const Eigen::VectorXd& ref, Eigen::Index n,
+                            const char* what) {
+  if (n < kVectorPassesFrom) {
+    EXPECT_TRUE(bitwise_equal(a, ref)) << what << ", n = " << n;
+    return;
+  }
+  const double scale = 1.0 + ref.cwiseAbs().maxCoeff();
+  EXPECT_LE((a - ref).cwiseAbs().maxCoeff(), 64 * std::numeric_limits<double>::epsilon() * scale)
+      << what << ", n = " << n;
+}
+
+// fvi-midpoint's two passes around Newton's solve (trapezoid_known_pass, trapezoid_step_pass)
+// against the Eigen expressions the step runs for other matrices (schemes/fvi_midpoint.cpp), in
+// their order: with and without the Taylor split, M = I and M ≠ I.
+TEST(StepPasses, TrapezoidPassesAreTheEigenExpressions) {
+  std::mt19937 rng(19);
+  for (const Eigen::Index n : kSizes) {
+    for (const bool unit : {true, false}) {
+      for (const bool split : {true, false}) {
+        const double h = 0.01, w = std::pow(2.0, 0.5), t = 3.5 * h;
+        const Eigen::VectorXd m = unit ? Eigen::VectorXd::Ones(n) : random_vector(n, rng, 0.5, 3.0);
+        const Eigen::VectorXd r = random_vector(n, rng, 0.1, 50.0);
+        const Eigen::VectorXd xk = random_vector(n, rng), x0 = random_vector(n, rng);
+        const Eigen::VectorXd v0 = random_vector(n, rng), sum = random_vector(n, rng);
+        const Eigen::VectorXd g_poly = random_vector(n, rng), g_poly_prev = random_vector(n, rng);
+        const Eigen::VectorXd q = random_vector(n, rng), g_tilde = random_vector(n, rng);
+        const Eigen::VectorXd dx = random_vector(n, rng, -1e-2, 1e-2);
+        const ModelMatrix force_matrix = ModelMatrix::diagonal(r);
+        // Before the solve.
+        Eigen::VectorXd mid_ref = xk, g_hat(n), rhs_ref(n);
+        if (split) {
+          mid_ref -= x0;
+          mid_ref -= t * v0;
+        }
+        Eigen::VectorXd tmp = w * mid_ref + sum;
+        force_matrix.multiply(tmp, g_hat);
+        g_hat += 0.5 * (g_poly + g_poly_prev);
+        rhs_ref = h * q;
+        rhs_ref -= (h * h) * g_hat;
+        Eigen::VectorXd mid(n), rhs(n);
+        trapezoid_known_pass(r.data(), xk.data(), split ? x0.data() : nullptr, t, v0.data(), w,
+                             sum.data(), g_poly.data(), g_poly_prev.data(), q.data(), h, mid.data(),
+                             rhs.data(), n);
+        expect_round_off_equal(mid, mid_ref, n, "x̃̄ before");
+        expect_round_off_equal(rhs, rhs_ref, n, "rhs");
+        // After the solve (from the same x̃̄, so that the second pass is compared alone).
+        Eigen::VectorXd next_ref = xk + dx, p_next(n), q_ref = q, g_tilde_ref = g_tilde;
+        Eigen::VectorXd g_total_ref(n), p_ref(n), v_ref(n);
+        ModelMatrix::diagonal(m).multiply(dx, p_next);
+        q_ref = p_next * (2.0 / h) - q_ref;
+        Eigen::VectorXd mid_after_ref = mid_ref;
+        mid_after_ref += 0.5 * dx;
+        tmp = w * mid_after_ref + sum;
+        force_matrix.multiply(tmp, g_total_ref);
+        g_tilde_ref = 2.0 * g_total_ref - g_tilde_ref;
+        q_ref += h * g_total_ref;
+        q_ref += (0.5 * h) * (g_poly + g_poly_prev);
+        g_total_ref = g_tilde_ref + g_poly;
+        p_ref = q_ref;
+        p_ref -= (0.5 * h) * g_total_ref;
+        v_ref.array() = p_ref.array() / m.array();
+        const double work_ref = g_total_ref.dot(dx);
+        for (const bool with_work : {true, false}) {
+          Eigen::VectorXd next(n), q_out = q, mid_out = mid_ref, g_tilde_out = g_tilde;
+          Eigen::VectorXd g_total(n), p(n), v(n);
+          const TrapezoidPass pass = trapezoid_step_pass(
+              m.data(), unit, r.data(), xk.data(), dx.data(), 2.0 / h, w, sum.data(), g_poly.data(),
+              g_poly_prev.data(), h, next.data(), q_out.data(), mid_out.data(), g_tilde_out.data(),
+              g_total.data(), p.data(), v.data(), with_work, n);
+          EXPECT_TRUE(pass.finite_position && pass.finite_velocity);
+          expect_round_off_equal(next, next_ref, n, "x_{k+1}");
+          expect_round_off_equal(mid_out, mid_after_ref, n, "x̃̄ after");
+          expect_round_off_equal(q_out, q_ref, n, "q");
+          expect_round_off_equal(g_tilde_out, g_tilde_ref, n, "G̃");
+          expect_round_off_equal(g_total, g_total_ref, n, "G");
+          expect_round_off_equal(p, p_ref, n, "p");
+          expect_round_off_equal(v, v_ref, n, "v");
+          if (with_work) {
+            // Eigen's dot and the simd reduction sum in different orders.
+            EXPECT_NEAR(pass.work, work_ref,
+                        1e-13 * g_total_ref.cwiseAbs().dot(dx.cwiseAbs()) + 1e-300);
+          } else {
+            EXPECT_EQ(pass.work, 0.0);
+          }
+        }
+        // A non-finite increment and a non-finite velocity are reported (the last element: the
+        // simd loop's remainder above kVectorPassesFrom).
+        Eigen::VectorXd bad = dx, next(n), q_out = q, mid_out = mid_ref, g_tilde_out = g_tilde;
+        Eigen::VectorXd g_total(n), p(n), v(n);
+        bad[n - 1] = std::numeric_limits<double>::infinity();
+        TrapezoidPass pass = trapezoid_step_pass(
+            m.data(), unit, r.data(), xk.data(), bad.data(), 2.0 / h, w, sum.data(), g_poly.data(),
+            g_poly_prev.data(), h, next.data(), q_out.data(), mid_out.data(), g_tilde_out.data(),
+            g_total.data(), p.data(), v.data(), false, n);
+        EXPECT_FALSE(pass.finite_position);
+        Eigen::VectorXd bad_sum = sum;
+        bad_sum[n - 1] = std::numeric_limits<double>::quiet_NaN();
+        q_out = q;
+        mid_out = mid_ref;
+        g_tilde_out = g_tilde;
+        pass = trapezoid_step_pass(m.data(), unit, r.data(), xk.data(), dx.data(), 2.0 / h, w,
+                                   bad_sum.data(), g_poly.data(), g_poly_prev.data(), h,
+                                   next.data(), q_out.data(), mid_out.data(), g_tilde_out.data(),
+                                   g_total.data(), p.data(), v.data(), false, n);
+        EXPECT_TRUE(pass.finite_position);
+        EXPECT_FALSE(pass.finite_velocity);
+      }
     }
   }
 }

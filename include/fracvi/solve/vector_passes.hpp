@@ -47,6 +47,13 @@ struct MomentumPass {
   double vp = 0.0;     // v·p, twice the kinetic energy (with_dots only)
 };
 
+/// What trapezoid_step_pass yields.
+struct TrapezoidPass {
+  bool finite_position = true;  // every x_next_i finite
+  bool finite_velocity = true;  // every v_i finite
+  double work = 0.0;            // G·Δ (with_work only)
+};
+
 // The loops, written once: inlined below kVectorPassesFrom as plain loops (kSimd = false), and
 // into the kernels' clones as simd loops (kSimd = true). (Every file is compiled with
 // -fopenmp-simd, CMakeLists.txt, so the simd pragmas act alike everywhere.) The maxima and the
@@ -280,6 +287,93 @@ FRACVI_PASS MomentumPass new_momentum(const double* r, const double* sum, const 
 #undef FRACVI_MOMENTUM_LOOP
 }
 
+// fvi-midpoint's step before Newton's solve, for R' = diag(r), the operations of its separate
+// passes in their order: x̃̄ = (x_k − x_0) − t v_0 (x_k without kSplit), Ĝ = r(w x̃̄ + S) +
+// ½(G^P_k + G^P_{k−1}), rhs = hq − h²Ĝ.
+template <bool kSimd, bool kSplit>
+[[gnu::always_inline]] inline void trapezoid_known_loop(
+    const double* r, const double* x, const double* x0, double t, const double* v0, double w,
+    const double* sum, const double* g_poly, const double* g_poly_prev, const double* q, double h,
+    double* mid_tilde, double* rhs, Eigen::Index n) {
+  const double h2 = h * h;
+#pragma omp simd if (simd : kSimd)
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double mid = kSplit ? (x[i] - x0[i]) - t * v0[i] : x[i];
+    mid_tilde[i] = mid;
+    const double g_hat = r[i] * (w * mid + sum[i]) + 0.5 * (g_poly[i] + g_poly_prev[i]);
+    rhs[i] = h * q[i] - h2 * g_hat;
+  }
+}
+
+FRACVI_PASS void trapezoid_known(const double* r, const double* x, const double* x0, double t,
+                                 const double* v0, double w, const double* sum,
+                                 const double* g_poly, const double* g_poly_prev, const double* q,
+                                 double h, double* mid_tilde, double* rhs, Eigen::Index n) {
+  if (x0 != nullptr) {
+    trapezoid_known_loop<kSimd, true>(r, x, x0, t, v0, w, sum, g_poly, g_poly_prev, q, h, mid_tilde,
+                                      rhs, n);
+  } else {
+    trapezoid_known_loop<kSimd, false>(r, x, x0, t, v0, w, sum, g_poly, g_poly_prev, q, h,
+                                       mid_tilde, rhs, n);
+  }
+}
+
+// fvi-midpoint's step after Newton's solve (schemes/fvi_midpoint.cpp) for diagonal M = diag(m)
+// and R' = diag(r), the operations of its separate passes in their order: x_{k+1} = x_k + Δ;
+// q ← (mΔ)s − q; x̃̄ ← x̃̄ + Δ/2; Ĝ̃ = r(w x̃̄ + S); G̃ ← 2Ĝ̃ − G̃; q ← (q + hĜ̃) + (h/2)(G^P_k +
+// G^P_{k−1}); G = G̃ + G^P_k; p = q − (h/2)G; v = p/m (p for kUnitMass: mΔ = Δ and p/1 = p
+// exactly); with kWork the energy account's G·Δ in dot's order.
+template <bool kSimd, bool kUnitMass, bool kWork>
+[[gnu::always_inline]] inline TrapezoidPass trapezoid_step_loop(
+    const double* m, const double* r, const double* a, const double* increment, double s, double w,
+    const double* sum, const double* g_poly, const double* g_poly_prev, double h, double* next,
+    double* q, double* mid_tilde, double* g_tilde, double* g_total, double* p, double* v,
+    Eigen::Index n) {
+  const double half_h = 0.5 * h;
+  double zero_x = 0.0, zero_v = 0.0, work = 0.0;
+#pragma omp simd if (simd : kSimd) reduction(+ : zero_x, zero_v, work)
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double dx = increment[i];
+    const double x = a[i] + dx;
+    next[i] = x;
+    zero_x += 0.0 * x;
+    const double mdx = kUnitMass ? dx : m[i] * dx;
+    const double mid = mid_tilde[i] + 0.5 * dx;
+    mid_tilde[i] = mid;
+    const double g_hat = r[i] * (w * mid + sum[i]);
+    const double g_til = 2.0 * g_hat - g_tilde[i];
+    g_tilde[i] = g_til;
+    const double q_next = ((mdx * s - q[i]) + h * g_hat) + half_h * (g_poly[i] + g_poly_prev[i]);
+    q[i] = q_next;
+    const double g = g_til + g_poly[i];
+    g_total[i] = g;
+    const double momentum = q_next - half_h * g;
+    p[i] = momentum;
+    const double velocity = kUnitMass ? momentum : momentum / m[i];
+    v[i] = velocity;
+    zero_v += 0.0 * velocity;
+    if constexpr (kWork) work += g * dx;
+  }
+  return {zero_x == 0.0, zero_v == 0.0, work};
+}
+
+FRACVI_PASS TrapezoidPass trapezoid_step(const double* m, bool unit_mass, const double* r,
+                                         const double* a, const double* increment, double s,
+                                         double w, const double* sum, const double* g_poly,
+                                         const double* g_poly_prev, double h, double* next,
+                                         double* q, double* mid_tilde, double* g_tilde,
+                                         double* g_total, double* p, double* v, bool with_work,
+                                         Eigen::Index n) {
+#define FRACVI_TRAPEZOID_LOOP(unit, with)                                                       \
+  trapezoid_step_loop<kSimd, unit, with>(m, r, a, increment, s, w, sum, g_poly, g_poly_prev, h, \
+                                         next, q, mid_tilde, g_tilde, g_total, p, v, n)
+  if (unit_mass) {
+    return with_work ? FRACVI_TRAPEZOID_LOOP(true, true) : FRACVI_TRAPEZOID_LOOP(true, false);
+  }
+  return with_work ? FRACVI_TRAPEZOID_LOOP(false, true) : FRACVI_TRAPEZOID_LOOP(false, false);
+#undef FRACVI_TRAPEZOID_LOOP
+}
+
 FRACVI_PASS double dot(const double* a, const double* b, Eigen::Index n) {
   double sum = 0.0;
 #pragma omp simd if (simd : kSimd) reduction(+ : sum)
@@ -325,6 +419,14 @@ bool new_position(const double* m, bool unit_mass, const double* increment, doub
 MomentumPass new_momentum(const double* r, const double* sum, const double* p_minus, double c,
                           const double* m, bool unit_mass, double* force, double* p, double* v,
                           double* w, bool with_dots, Eigen::Index n);
+void trapezoid_known(const double* r, const double* x, const double* x0, double t, const double* v0,
+                     double w, const double* sum, const double* g_poly, const double* g_poly_prev,
+                     const double* q, double h, double* mid_tilde, double* rhs, Eigen::Index n);
+TrapezoidPass trapezoid_step(const double* m, bool unit_mass, const double* r, const double* a,
+                             const double* increment, double s, double w, const double* sum,
+                             const double* g_poly, const double* g_poly_prev, double h,
+                             double* next, double* q, double* mid_tilde, double* g_tilde,
+                             double* g_total, double* p, double* v, bool with_work, Eigen::Index n);
 double dot(const double* a, const double* b, Eigen::Index n);
 double weighted_squares(const double* w, const double* x, Eigen::Index n);
 }  // namespace kernels
@@ -407,6 +509,33 @@ inline MomentumPass new_momentum_pass(const double* r, const double* sum, const 
                                       Eigen::Index n) {
   return FRACVI_DISPATCH(new_momentum, r, sum, p_minus, c, m, unit_mass, force, p, v, w, with_dots,
                          n);
+}
+/// fvi-midpoint's step before Newton's solve for R' = diag(r), with w = ω̂_0: x̃̄ = (x − x0) − t v0
+/// (x itself for a null x0: no Taylor split; v0 is read with x0), Ĝ = r(w x̃̄ + S) + ½(G^P_k +
+/// G^P_{k−1}) and rhs = hq − h²Ĝ. The default build makes the roundings of the separate Eigen
+/// expressions; the x86-64-v3 clone fuses a·b + c into FMAs.
+inline void trapezoid_known_pass(const double* r, const double* x, const double* x0, double t,
+                                 const double* v0, double w, const double* sum,
+                                 const double* g_poly, const double* g_poly_prev, const double* q,
+                                 double h, double* mid_tilde, double* rhs, Eigen::Index n) {
+  FRACVI_DISPATCH(trapezoid_known, r, x, x0, t, v0, w, sum, g_poly, g_poly_prev, q, h, mid_tilde,
+                  rhs, n);
+}
+/// fvi-midpoint's step after Newton's solve for M = diag(m) (`unit_mass`: m = 1, not read) and
+/// R' = diag(r), with s = 2/h and w = ω̂_0: next = a + Δ, q ← (mΔ)s − q + hĜ̃ + (h/2)(G^P_k +
+/// G^P_{k−1}) with Ĝ̃ = r(w x̃̄ + S) and x̃̄ ← x̃̄ + Δ/2 (in place), G̃ ← 2Ĝ̃ − G̃ (in place),
+/// G = G̃ + G^P_k, p = q − (h/2)G, v = p/m; with `with_work` G·Δ in dot_pass's order
+/// (n ≥ kVectorPassesFrom; smaller systems keep Eigen's dot). The default build makes the roundings
+/// of the separate Eigen expressions; the x86-64-v3 clone fuses a·b + c into FMAs.
+inline TrapezoidPass trapezoid_step_pass(const double* m, bool unit_mass, const double* r,
+                                         const double* a, const double* increment, double s,
+                                         double w, const double* sum, const double* g_poly,
+                                         const double* g_poly_prev, double h, double* next,
+                                         double* q, double* mid_tilde, double* g_tilde,
+                                         double* g_total, double* p, double* v, bool with_work,
+                                         Eigen::Index n) {
+  return FRACVI_DISPATCH(trapezoid_step, m, unit_mass, r, a, increment, s, w, sum, g_poly,
+                         g_poly_prev, h, next, q, mid_tilde, g_tilde, g_total, p, v, with_work, n);
 }
 
 #undef FRACVI_DISPATCH
