@@ -120,14 +120,20 @@ TEST(TeamChooser, ATeamSlowerThanOneThreadLosesItsTrialAndItsHold) {
     EXPECT_EQ(trial(team, 1e-3, 20e-3, &team_calls), 1);
     EXPECT_EQ(team_calls, TeamChooser::kWarmCalls + 1);
   }
-  const auto hold_after_burst = [](double burst_seconds) {
+  // A team of two that won its trial (0.6 ms against 1 ms a call) and then held `calls` calls of
+  // `seconds` each, every one of them on the team.
+  const auto held_team = [](int calls, double seconds) {
     TeamChooser team;
     team.configure(0, 2);
     EXPECT_EQ(trial(team, 1e-3, 0.6e-3), 2);
-    for (int i = 0; i < 200; ++i) {
+    for (int i = 0; i < calls; ++i) {
       EXPECT_EQ(team.next(), 2) << "hold call " << i;
-      team.record(0.6e-3);
+      team.record(seconds);
     }
+    return team;
+  };
+  const auto hold_after_burst = [&](double burst_seconds) {
+    TeamChooser team = held_team(200, 0.6e-3);
     team.record(burst_seconds);  // the other core was taken away for this call
     return team.next();
   };
@@ -138,22 +144,10 @@ TEST(TeamChooser, ATeamSlowerThanOneThreadLosesItsTrialAndItsHold) {
   {
     // Held calls steadily slower than the team's trial but faster than one thread: kept for the
     // whole hold (0.72 s: 757 calls of 0.95 ms).
-    TeamChooser team;
-    team.configure(0, 2);
-    EXPECT_EQ(trial(team, 1e-3, 0.6e-3), 2);
-    for (int i = 0; i < 750; ++i) {
-      ASSERT_EQ(team.next(), 2) << "hold call " << i;
-      team.record(0.95e-3);
-    }
+    EXPECT_EQ(held_team(750, 0.95e-3).next(), 2);
     // Held calls slower than one thread: one thread from the kTrial-th on, for the rest of the
     // hold, and then trials again.
-    TeamChooser slow;
-    slow.configure(0, 2);
-    EXPECT_EQ(trial(slow, 1e-3, 0.6e-3), 2);
-    for (int i = 0; i < kTrial; ++i) {
-      ASSERT_EQ(slow.next(), 2) << "hold call " << i;
-      slow.record(1.2e-3);
-    }
+    TeamChooser slow = held_team(kTrial, 1.2e-3);
     EXPECT_EQ(slow.next(), 1);
     EXPECT_FALSE(slow.in_trial());
     int calls = 0;
