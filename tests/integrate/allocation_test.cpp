@@ -206,6 +206,18 @@ TEST_F(NoAllocation, BandedChainWithThreadedFastHistory) {
   }
 }
 
+// The fused element passes of the CQ midpoint schemes and of fvi-midpoint (diagonal M and R',
+// d ≥ kVectorPassesFrom; solve/vector_passes.hpp), with diagnostics and the step sums.
+TEST_F(NoAllocation, FusedChainPassesPerScheme) {
+  for (const char* name : {"fvi-gl", "fvi-bdf2", "fvi-midpoint"}) {
+    IntegratorOptions options;
+    options.history = HistoryKind::kFast;
+    options.threads = 1;
+    Integrator integ(large_chain(200, 60, 1), *parse_method(name), options);
+    EXPECT_EQ(allocations_while_stepping(integ), 0u) << name;
+  }
+}
+
 TEST_F(NoAllocation, ThreadedChainPotential) {
   IntegratorOptions options;
   options.history = HistoryKind::kFast;
