@@ -230,8 +230,8 @@ Status TrapezoidalMidpointStepper::advance() {
                                 force_matrix_.stored_diagonal()->data(), xk.data(), dx_.data(),
                                 2.0 / h_, current_weight_, sum_.data(), g_poly_.data(),
                                 g_poly_prev_.data(), h_, x_next_.data(), q_.data(),
-                                mid_tilde_.data(), g_tilde_.data(), g_total_.data(), p_.data(),
-                                v_cur_.data(), diagnostics_, d_);
+                                mid_tilde_.data(), g_tilde_.data(), g_total_.data(),
+                                p_next_.data(), tmp_.data(), diagnostics_, d_);
     if (!fused.finite_position) return fail(Status::kNonFinite, "non-finite position");
     g_poly_prev_.swap(g_poly_);
     memory_->push(k, mid_tilde_);
@@ -255,8 +255,9 @@ Status TrapezoidalMidpointStepper::advance() {
       memory_->push(k, mid_tilde_);
     }
     // The node momentum (right Legendre transform of cell k): p_{k+1} = q_{k+1} − (h/2)G_k.
-    p_ = q_;
-    if (damped_) p_ -= (0.5 * h_) * g_total_;
+    p_next_ = q_;
+    if (damped_) p_next_ -= (0.5 * h_) * g_total_;
+    mass_solver_.inverse(p_next_, tmp_);
   }
   if (diagnostics_) {
     // E_{k+1} − E_k = −(G_k − f)·Δ_k for quadratic U (the midpoint rule: ∇U(x̄)·Δ = ΔU), plus
@@ -282,9 +283,12 @@ Status TrapezoidalMidpointStepper::advance() {
       supplied_ += du;
     }
   }
-  if (!fused_passes_) mass_solver_.inverse(p_, v_cur_);
-  if (!(fused_passes_ ? fused.finite_velocity : v_cur_.allFinite()))
+  // p_{k+1} and v_{k+1} are in p_next_ and tmp_ until both checks pass: a failed step leaves
+  // x_k, v_k, p_k for the Integrator's last row.
+  if (!(fused_passes_ ? fused.finite_velocity : tmp_.allFinite()))
     return fail(Status::kNonFinite, "non-finite velocity");
+  p_.swap(p_next_);
+  v_cur_.swap(tmp_);
   if (k == 0) x_first_ = x_next_;  // the mirror run starts from x_0, x_1
   x_cur_.swap(x_next_);
   ++k_;
