@@ -230,8 +230,8 @@ Status TrapezoidalMidpointStepper::advance() {
                                 force_matrix_.stored_diagonal()->data(), xk.data(), dx_.data(),
                                 2.0 / h_, current_weight_, sum_.data(), g_poly_.data(),
                                 g_poly_prev_.data(), h_, x_next_.data(), q_.data(),
-                                mid_tilde_.data(), g_tilde_.data(), g_total_.data(),
-                                p_next_.data(), tmp_.data(), diagnostics_, d_);
+                                mid_tilde_.data(), g_tilde_.data(), g_total_.data(), p_next_.data(),
+                                tmp_.data(), diagnostics_, d_);
     if (!fused.finite_position) return fail(Status::kNonFinite, "non-finite position");
     g_poly_prev_.swap(g_poly_);
     memory_->push(k, mid_tilde_);
