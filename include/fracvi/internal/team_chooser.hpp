@@ -21,7 +21,7 @@ namespace fracvi::internal {
 /// history once its window is full).
 ///
 /// Two guards keep the team from costing more than one thread would. A machine whose second core
-/// is taken away in bursts (a virtual machine with steal time) makes the team's calls 10–20 times
+/// is taken away in bursts (a virtual machine with steal time) makes the team's calls 10–25 times
 /// slower while it lasts, and a short trial can fall between bursts (d = 1000 on the 2-vCPU
 /// machine: a team trial of 14.7 µs a step, then a hold at 31.8 µs against one thread's 18.1;
 /// bench/RESULTS.md). (1) The team's trial ends as lost as soon as its timed calls have taken
