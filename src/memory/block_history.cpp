@@ -152,7 +152,8 @@ FastBlockHistory::FastBlockHistory(std::shared_ptr<const RkcqTail> tail, std::si
                                    Eigen::Index dimension, std::size_t capacity)
     : tail_(checked_tail(std::move(tail), lag, dimension, capacity)),
       lag_(lag),
-      capacity_(capacity) {
+      capacity_(capacity),
+      run_ahead_(*this, {kParallelWork, kRunAheadWork, kBalancedRunAheadFrom}) {
   const Eigen::Index s = tail_->stages;
   stages_ = s;
   window_ = static_cast<Eigen::Index>(tail_->window - lag);
@@ -175,11 +176,12 @@ FastBlockHistory::FastBlockHistory(std::shared_ptr<const RkcqTail> tail, std::si
     left_.row(i) = tail_->gammas[u] * tail_->left[u].transpose();
   }
   state_.setZero(dimension, k);
+  partial_.setZero(dimension, s);
   sum_.setZero(dimension, s);
-  team_.configure(0, internal::team_size(0, push_work(), kParallelWork));
+  run_ahead_.configure(0, dimension, push_work());
 }
 
-namespace {
+namespace internal {
 
 // One block of rows of FastBlockHistory::push() (the columns of every array are d long; the
 // pointers are offset to the block's first row).
@@ -188,148 +190,276 @@ struct BlockHistoryRows {
   Eigen::Index slot, first;  // ring positions of Z_{k−n0} (taken by Z_k) and of the window's start
   double* state;             // d × K: column i is Y_i
   double* ring;              // d × (n0·s): column t·s + e is stage e at ring position t
+  double* partial;           // d × s: the sum but for the terms with Z_k (newest_start())
   double* sum;               // d × s
-  const double* block;       // Z_k, d × s with column stride block_ld
+  const double* block;       // Z_k, d × s with column stride block_ld (null: run ahead)
   const double* decay;       // r_i
   const double* right;       // K × s: (v_i)_e at e·K + i
   const double* left;        // K × s: γ_i (u_i)_c at c·K + i
   const double* head;        // (n0·s) × s: column c holds the window's weights of output c
 };
 
-// The kernel for s stages. As FastHistory's kernel (fast_history.cpp), the loops run along the
+}  // namespace internal
+
+using internal::BlockHistoryRows;
+
+namespace {
+
+// The window's n0·s columns (oldest first) are added in groups of four, then the remainder one by
+// one. Only the last s columns hold Z_k, so the additions are split before the first that
+// involves one of them — the last group of four (s ≤ 4 columns fit in it) or, past the groups,
+// the first of the last s — and push k + 1's recursions and older window can run on the second
+// thread while the caller computes step k + 1 (internal/run_ahead.hpp). One thread makes both
+// parts in a row: the same additions in the same order.
+Eigen::Index newest_start(Eigen::Index width, Eigen::Index s) {
+  const Eigen::Index grouped = width / 4 * 4, first_new = width - s;
+  return first_new < grouped ? first_new / 4 * 4 : first_new;
+}
+
+// The window's column q (oldest first) is ring column first·s + q, wrapped at n0·s (the ring
+// holds each block once, as FastHistory's: fast_history.hpp).
+inline const double* window_column(const BlockHistoryRows& blk, Eigen::Index s, Eigen::Index q) {
+  return internal::ring_window_column(blk.ring, blk.ld, blk.window * s, blk.first * s, q);
+}
+
+// One group of four window columns q … q + 3 (oldest first) into the s outputs: out[c] = in[c] +
+// their terms (in = out: in place).
+template <int S>
+[[gnu::always_inline]] inline void window_group(const BlockHistoryRows& blk,
+                                                const double* const* in, double* const* out,
+                                                Eigen::Index q) {
+  const Eigen::Index n = blk.rows, width = blk.window * S;
+  const double* c0 = window_column(blk, S, q);
+  const double* c1 = window_column(blk, S, q + 1);
+  const double* c2 = window_column(blk, S, q + 2);
+  const double* c3 = window_column(blk, S, q + 3);
+  double h[S][4];
+  for (int c = 0; c < S; ++c)
+    for (int j = 0; j < 4; ++j) h[c][j] = blk.head[c * width + q + j];
+  FRACVI_INDEPENDENT_ITERATIONS
+  for (Eigen::Index r = 0; r < n; ++r) {
+    const double z0 = c0[r], z1 = c1[r], z2 = c2[r], z3 = c3[r];
+    for (int c = 0; c < S; ++c)
+      out[c][r] = in[c][r] + ((h[c][0] * z0 + h[c][1] * z1) + (h[c][2] * z2 + h[c][3] * z3));
+  }
+}
+
+// One window column q into the s outputs: out[c] = in[c] + its term.
+template <int S>
+[[gnu::always_inline]] inline void window_single(const BlockHistoryRows& blk,
+                                                 const double* const* in, double* const* out,
+                                                 Eigen::Index q) {
+  const Eigen::Index n = blk.rows, width = blk.window * S;
+  const double* col = window_column(blk, S, q);
+  for (int c = 0; c < S; ++c) {
+    const double weight = blk.head[c * width + q];
+    const double* src = in[c];
+    double* dst = out[c];
+    FRACVI_INDEPENDENT_ITERATIONS
+    for (Eigen::Index r = 0; r < n; ++r) dst[r] = src[r] + weight * col[r];
+  }
+}
+
+// Window columns [begin, end) in place onto `out`, in the order of the whole window's loop (groups
+// of four from a multiple of four, then one by one).
+template <int S>
+[[gnu::always_inline]] inline void add_window(const BlockHistoryRows& blk, double* const* out,
+                                              Eigen::Index begin, Eigen::Index end) {
+  const Eigen::Index grouped_end = std::min(end, blk.window * S / 4 * 4);
+  Eigen::Index q = begin;
+  for (; q + 4 <= grouped_end; q += 4) window_group<S>(blk, out, out, q);
+  for (; q < end; ++q) window_single<S>(blk, out, out, q);
+}
+
+// Four recursions i … i + 3 over the rows, their terms added to the outputs; the first group
+// (kFirst) adds them to 0 instead of reading the outputs: 0 + t is the same number as a zeroed
+// output plus t, −0 included, without a pass that zeroes them.
+template <int S, bool kFirst>
+[[gnu::always_inline]] inline void recursion_group(const BlockHistoryRows& blk,
+                                                   const double* const* x, double* const* out,
+                                                   Eigen::Index i) {
+  const Eigen::Index n = blk.rows, ld = blk.ld, terms = blk.terms;
+  double* y0 = blk.state + i * ld;
+  double* y1 = y0 + ld;
+  double* y2 = y1 + ld;
+  double* y3 = y2 + ld;
+  double a[4], v[4][S], u[4][S];
+  for (int j = 0; j < 4; ++j) {
+    a[j] = blk.decay[i + j];
+    for (int e = 0; e < S; ++e) v[j][e] = blk.right[e * terms + i + j];
+    for (int c = 0; c < S; ++c) u[j][c] = blk.left[c * terms + i + j];
+  }
+  FRACVI_INDEPENDENT_ITERATIONS
+  for (Eigen::Index r = 0; r < n; ++r) {
+    double w0 = a[0] * y0[r], w1 = a[1] * y1[r], w2 = a[2] * y2[r], w3 = a[3] * y3[r];
+    for (int e = 0; e < S; ++e) {
+      const double z = x[e][r];
+      w0 += v[0][e] * z;
+      w1 += v[1][e] * z;
+      w2 += v[2][e] * z;
+      w3 += v[3][e] * z;
+    }
+    y0[r] = w0;
+    y1[r] = w1;
+    y2[r] = w2;
+    y3[r] = w3;
+    for (int c = 0; c < S; ++c) {
+      out[c][r] = (kFirst ? 0.0 : out[c][r]) +
+                  ((u[0][c] * w0 + u[1][c] * w1) + (u[2][c] * w2 + u[3][c] * w3));
+    }
+  }
+}
+
+// The kernels for s stages. As FastHistory's kernels (fast_history.cpp), the loops run along the
 // degrees of freedom (contiguous columns, no horizontal sums), and four recursions share one load
 // and store of the s output columns: per term Y_i ← r_i Y_i + Σ_e (v_i)_e Z_{k−n0}(:, e) and
 // out(:, c) += γ_i (u_i)_c Y_i, i.e. K (2s + 1) multiply–adds per degree of freedom; then the
 // window, n0·s columns against s outputs. (The layout of one degree of freedom per pass, with the
 // loops over the K terms, ran at 4–7 times s scalar histories per step at d = 100 … 1000:
 // bench/block_history_bench.cpp.)
+// older_rows: the recursions (fed with Z_{k−n0}, which sits in the slot Z_k will take) and the
+// window's columns before newest_start(), into `partial`.
 template <int S>
-[[gnu::always_inline]] inline void push_rows(const BlockHistoryRows& blk) {
+[[gnu::always_inline]] inline void older_rows(const BlockHistoryRows& blk) {
   const Eigen::Index n = blk.rows, ld = blk.ld, terms = blk.terms;
   double* out[S];
-  for (int c = 0; c < S; ++c) {
-    out[c] = blk.sum + c * ld;
-    for (Eigen::Index r = 0; r < n; ++r) out[c][r] = 0.0;
+  for (int c = 0; c < S; ++c) out[c] = blk.partial + c * ld;
+  const double* x[S];  // the stage vectors of Z_{k−n0}, leaving the window
+  for (int e = 0; e < S; ++e) x[e] = blk.ring + (blk.slot * S + e) * ld;
+  Eigen::Index i = 0;
+  if (terms >= 4) {
+    recursion_group<S, true>(blk, x, out, 0);
+    i = 4;
+  } else {
+    for (int c = 0; c < S; ++c)
+      for (Eigen::Index r = 0; r < n; ++r) out[c][r] = 0.0;
   }
-  if (terms > 0) {
-    const double* x[S];  // the stage vectors of Z_{k−n0}, leaving the window
-    for (int e = 0; e < S; ++e) x[e] = blk.ring + (blk.slot * S + e) * ld;
-    Eigen::Index i = 0;
-    for (; i + 4 <= terms; i += 4) {
-      double* y0 = blk.state + i * ld;
-      double* y1 = y0 + ld;
-      double* y2 = y1 + ld;
-      double* y3 = y2 + ld;
-      double a[4], v[4][S], u[4][S];
-      for (int j = 0; j < 4; ++j) {
-        a[j] = blk.decay[i + j];
-        for (int e = 0; e < S; ++e) v[j][e] = blk.right[e * terms + i + j];
-        for (int c = 0; c < S; ++c) u[j][c] = blk.left[c * terms + i + j];
-      }
-      FRACVI_INDEPENDENT_ITERATIONS
-      for (Eigen::Index r = 0; r < n; ++r) {
-        double w0 = a[0] * y0[r], w1 = a[1] * y1[r], w2 = a[2] * y2[r], w3 = a[3] * y3[r];
-        for (int e = 0; e < S; ++e) {
-          const double z = x[e][r];
-          w0 += v[0][e] * z;
-          w1 += v[1][e] * z;
-          w2 += v[2][e] * z;
-          w3 += v[3][e] * z;
-        }
-        y0[r] = w0;
-        y1[r] = w1;
-        y2[r] = w2;
-        y3[r] = w3;
-        for (int c = 0; c < S; ++c)
-          out[c][r] += (u[0][c] * w0 + u[1][c] * w1) + (u[2][c] * w2 + u[3][c] * w3);
-      }
-    }
-    for (; i < terms; ++i) {
-      double* y = blk.state + i * ld;
-      const double a = blk.decay[i];
-      FRACVI_INDEPENDENT_ITERATIONS
-      for (Eigen::Index r = 0; r < n; ++r) {
-        double w = a * y[r];
-        for (int e = 0; e < S; ++e) w += blk.right[e * terms + i] * x[e][r];
-        y[r] = w;
-        for (int c = 0; c < S; ++c) out[c][r] += blk.left[c * terms + i] * w;
-      }
+  for (; i + 4 <= terms; i += 4) recursion_group<S, false>(blk, x, out, i);
+  for (; i < terms; ++i) {
+    double* y = blk.state + i * ld;
+    const double a = blk.decay[i];
+    FRACVI_INDEPENDENT_ITERATIONS
+    for (Eigen::Index r = 0; r < n; ++r) {
+      double w = a * y[r];
+      for (int e = 0; e < S; ++e) w += blk.right[e * terms + i] * x[e][r];
+      y[r] = w;
+      for (int c = 0; c < S; ++c) out[c][r] += blk.left[c * terms + i] * w;
     }
   }
-  // Z_k enters the ring (once; Z_{k−n0}, read above, sat in the same slot).
+  add_window<S>(blk, out, 0, newest_start(blk.window * S, S));
+}
+
+// newest_rows: Z_k enters the ring (once; Z_{k−n0}, read by older_rows, sat in the same slot), and
+// the sum = partial + the window's columns from newest_start() on.
+template <int S>
+[[gnu::always_inline]] inline void newest_rows(const BlockHistoryRows& blk) {
+  const Eigen::Index n = blk.rows, ld = blk.ld;
   for (int e = 0; e < S; ++e) {
     const double* z = blk.block + e * blk.block_ld;
     double* a = blk.ring + (blk.slot * S + e) * ld;
     for (Eigen::Index r = 0; r < n; ++r) a[r] = z[r];
   }
-  // The window's column q (oldest first) is ring column first·s + q, wrapped at n0·s (the ring
-  // holds each block once, as FastHistory's: fast_history.hpp).
-  const Eigen::Index width = blk.window * S;  // 16·s: a multiple of 4
-  const auto window_column = [&](Eigen::Index q) {
-    return internal::ring_window_column(blk.ring, ld, width, blk.first * S, q);
-  };
-  Eigen::Index q = 0;
-  for (; q + 4 <= width; q += 4) {
-    const double* c0 = window_column(q);
-    const double* c1 = window_column(q + 1);
-    const double* c2 = window_column(q + 2);
-    const double* c3 = window_column(q + 3);
-    double h[S][4];
-    for (int c = 0; c < S; ++c)
-      for (int j = 0; j < 4; ++j) h[c][j] = blk.head[c * width + q + j];
-    FRACVI_INDEPENDENT_ITERATIONS
-    for (Eigen::Index r = 0; r < n; ++r) {
-      const double z0 = c0[r], z1 = c1[r], z2 = c2[r], z3 = c3[r];
-      for (int c = 0; c < S; ++c)
-        out[c][r] += (h[c][0] * z0 + h[c][1] * z1) + (h[c][2] * z2 + h[c][3] * z3);
-    }
+  const double* partial[S];
+  double* out[S];
+  for (int c = 0; c < S; ++c) {
+    partial[c] = blk.partial + c * ld;
+    out[c] = blk.sum + c * ld;
   }
-  for (; q < width; ++q) {
-    const double* col = window_column(q);
-    for (int c = 0; c < S; ++c) {
-      const double weight = blk.head[c * width + q];
-      for (Eigen::Index r = 0; r < n; ++r) out[c][r] += weight * col[r];
-    }
+  // The first addition from partial into the sum, the others in place.
+  const Eigen::Index width = blk.window * S, q = newest_start(width, S);
+  if (q + 4 <= width / 4 * 4) {
+    window_group<S>(blk, partial, out, q);
+    add_window<S>(blk, out, q + 4, width);
+  } else {
+    window_single<S>(blk, partial, out, q);
+    add_window<S>(blk, out, q + 1, width);
   }
 }
 
-FRACVI_HOT_KERNEL void push_rows2(const BlockHistoryRows& blk) {
-  push_rows<2>(blk);
+FRACVI_HOT_KERNEL void older_rows2(const BlockHistoryRows& blk) {
+  older_rows<2>(blk);
 }
-FRACVI_HOT_KERNEL void push_rows3(const BlockHistoryRows& blk) {
-  push_rows<3>(blk);
+FRACVI_HOT_KERNEL void older_rows3(const BlockHistoryRows& blk) {
+  older_rows<3>(blk);
 }
-FRACVI_HOT_KERNEL void push_rows4(const BlockHistoryRows& blk) {
-  push_rows<4>(blk);
+FRACVI_HOT_KERNEL void older_rows4(const BlockHistoryRows& blk) {
+  older_rows<4>(blk);
 }
+FRACVI_HOT_KERNEL void newest_rows2(const BlockHistoryRows& blk) {
+  newest_rows<2>(blk);
+}
+FRACVI_HOT_KERNEL void newest_rows3(const BlockHistoryRows& blk) {
+  newest_rows<3>(blk);
+}
+FRACVI_HOT_KERNEL void newest_rows4(const BlockHistoryRows& blk) {
+  newest_rows<4>(blk);
+}
+
+// Blocks of kBlock rows keep the s output columns in L1 while the K recursions pass over them.
+constexpr Eigen::Index kBlock = 256;
 
 }  // namespace
+
+internal::BlockHistoryRows FastBlockHistory::rows(Eigen::Index b, Eigen::Index n,
+                                                  Eigen::Index terms, Eigen::Index slot,
+                                                  Eigen::Index first,
+                                                  const Eigen::Ref<const Eigen::MatrixXd>* block) {
+  return {n,
+          terms,
+          window_,
+          sum_.rows(),
+          block != nullptr ? block->outerStride() : 0,
+          slot,
+          first,
+          state_.data() + b,
+          ring_.data() + b,
+          partial_.data() + b,
+          sum_.data() + b,
+          block != nullptr ? block->data() + b : nullptr,
+          decay_.data(),
+          right_.data(),
+          left_.data(),
+          head_.data()};
+}
+
+void FastBlockHistory::run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot,
+                                 Eigen::Index first) {
+  const Eigen::Index s = stages_, terms = decay_.size();
+  void (*older)(const BlockHistoryRows&) =
+      s == 2 ? older_rows2 : (s == 3 ? older_rows3 : older_rows4);
+  for (Eigen::Index b = lo; b < hi; b += kBlock)
+    older(rows(b, std::min(kBlock, hi - b), terms, leaving_slot, first, nullptr));
+}
 
 void FastBlockHistory::push(const Eigen::Ref<const Eigen::MatrixXd>& block) {
   assert(size_ < capacity_ && block.rows() == sum_.rows() && block.cols() == stages_);
   const Eigen::Index s = stages_, n0 = window_, terms = decay_.size(), d = sum_.rows();
-  const auto slot = static_cast<Eigen::Index>(size_ % static_cast<std::size_t>(n0));
-  const bool recurse = size_ >= static_cast<std::size_t>(n0);
+  const auto window = static_cast<std::size_t>(n0);
+  const auto slot = static_cast<Eigen::Index>(size_ % window);
+  const bool recurse = size_ >= window;
   // After the push the last n0 blocks Z_{k−n0+1} … Z_k sit at ring positions first … first + n0 − 1
   // (each position s columns); before k = n0 − 1 the missing ones are the zeros the ring was
   // cleared to.
-  const auto first = static_cast<Eigen::Index>((size_ + 1) % static_cast<std::size_t>(n0));
-  void (*kernel)(const BlockHistoryRows&) =
-      s == 2 ? push_rows2 : (s == 3 ? push_rows3 : push_rows4);
-  // Blocks of kBlock rows keep the s output columns in L1 while the K recursions pass over them.
-  constexpr Eigen::Index kBlock = 256;
+  const auto first = static_cast<Eigen::Index>((size_ + 1) % window);
+  void (*older)(const BlockHistoryRows&) =
+      s == 2 ? older_rows2 : (s == 3 ? older_rows3 : older_rows4);
+  void (*newest)(const BlockHistoryRows&) =
+      s == 2 ? newest_rows2 : (s == 3 ? newest_rows3 : newest_rows4);
+  const internal::RunAhead::Turn turn = run_ahead_.begin(size_, window, capacity_);
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
     for (Eigen::Index b = lo; b < hi; b += kBlock) {
-      kernel({std::min(kBlock, hi - b), recurse ? terms : Eigen::Index{0}, n0, d,
-              block.outerStride(), slot, first, state_.data() + b, ring_.data() + b,
-              sum_.data() + b, block.data() + b, decay_.data(), right_.data(), left_.data(),
-              head_.data()});
+      const BlockHistoryRows blk =
+          rows(b, std::min(kBlock, hi - b), recurse ? terms : 0, slot, first, &block);
+      if (!turn.ahead) older(blk);
+      newest(blk);
     }
   };
-  // The pushes before the window is full skip the recursions: the thread choice measures again.
-  if (size_ == static_cast<std::size_t>(window_)) team_.restart();
-  internal::for_blocks(d, team_, update);
+  // A team of two runs the next push ahead (the caller only makes the window's last additions);
+  // a larger team splits the rows.
+  internal::for_blocks(d, turn.split, update);
   ++size_;
+  run_ahead_.end(turn, static_cast<Eigen::Index>(size_ % window),
+                 static_cast<Eigen::Index>((size_ + 1) % window));
 }
 
 void FastBlockHistory::sum(Eigen::Ref<Eigen::MatrixXd> out) const {
@@ -338,8 +468,15 @@ void FastBlockHistory::sum(Eigen::Ref<Eigen::MatrixXd> out) const {
 }
 
 void FastBlockHistory::set_threads(int threads) {
-  team_.configure(threads, internal::team_size(threads, push_work(), kParallelWork));
-  internal::start_threads(team_.team());
+  run_ahead_.configure(threads, sum_.rows(), push_work());
+}
+
+void FastBlockHistory::set_run_ahead_rows(Eigen::Index rows) {
+  if (rows < 0) {
+    throw std::invalid_argument("FastBlockHistory: run-ahead rows = " + std::to_string(rows) +
+                                " must be >= 0 (0: balanced by timing)");
+  }
+  run_ahead_.set_fixed_rows(rows);
 }
 
 void FastBlockHistory::visit_state(StateArchive& archive) {
@@ -354,19 +491,31 @@ void FastBlockHistory::visit_state(StateArchive& archive) {
   if (size_ > capacity_) {
     throw CheckpointError("checkpoint record 'block_fast.size' exceeds capacity");
   }
+  run_ahead_.finish();
   // Records of the degree-of-freedom-major layout (ring and recursions as d × … columns): the
   // names differ from those of the earlier transposed layout, so that its checkpoints are refused
   // by name rather than restored transposed.
   archive.dense("block_fast.ring_by_stage", ring_);
   archive.dense("block_fast.recursions_by_term", state_);
+  archive.dense("block_fast.partial", partial_);
   archive.dense("block_fast.sum", sum_);
+  // Whether the recursions and `partial` already include the next push's (run ahead).
+  bool ahead = run_ahead_.ahead();
+  archive.flag("block_fast.ahead", ahead);
+  if (ahead != run_ahead_.ahead()) run_ahead_.set_ahead(ahead);  // restored
+  if (ahead && (size_ < static_cast<std::size_t>(window_) || size_ >= capacity_)) {
+    throw CheckpointError("checkpoint record 'block_fast.ahead' is set where no push runs ahead");
+  }
 }
 
 void FastBlockHistory::clear() {
+  run_ahead_.finish();
   ring_.setZero();
   state_.setZero();
+  partial_.setZero();
   sum_.setZero();
   size_ = 0;
+  run_ahead_.reset();
 }
 
 // ---------------------------------------------------------------------------------------------

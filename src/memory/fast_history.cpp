@@ -1,17 +1,13 @@
 #include "fracvi/memory/fast_history.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <bit>
 #include <cassert>
-#include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <utility>
 
-#include "fracvi/internal/cpu_placement.hpp"
 #include "fracvi/internal/parallel.hpp"
 #include "fracvi/internal/ring_window.hpp"
 #include "fracvi/internal/vectorize.hpp"
@@ -331,102 +327,11 @@ std::size_t fast_history_fit_lag(std::size_t capacity) {
   return max_lag > (std::size_t{1} << 62) ? max_lag : std::bit_ceil(max_lag);
 }
 
-// The second thread of a team of two: it runs the recursions of the next push while the caller
-// computes the rest of its step (fast_history.hpp). One job at a time, handed over through one
-// atomic: kIdle (no job, or its results published), kWork (slot posted), kStop. Each side spins a
-// while before it sleeps on the atomic (futex): a job posted at the end of a push is usually
-// finished before the next push, and the next job comes one step later, so at the sizes where a
-// team pays (≥ kRunAheadWork multiply–adds per push, microseconds) the handover stays in
-// the spin. Neither side allocates after construction.
-class FastHistory::AheadThread {
- public:
-  using Clock = std::chrono::steady_clock;
-
-  explicit AheadThread(FastHistory& history) : history_(history), worker_([this] { serve(); }) {}
-  ~AheadThread() {
-    finish();
-    job_.store(kStop, std::memory_order_release);
-    job_.notify_one();
-    worker_.join();
-  }
-  AheadThread(const AheadThread&) = delete;
-  AheadThread& operator=(const AheadThread&) = delete;
-
-  /// Starts the next push's recursions (x̃ from ring column `leaving_slot`) and older window (from
-  /// column `first`) for rows [0, rows); `timed`: the job records its start and finish.
-  void post(Eigen::Index leaving_slot, Eigen::Index first, Eigen::Index rows, bool timed) {
-    slot_ = leaving_slot;
-    first_ = first;
-    rows_ = rows;
-    timed_ = timed;
-    caller_cpu_ = internal::current_cpu();
-    job_.store(kWork, std::memory_order_release);
-    job_.notify_one();
-  }
-  /// Returns once the job posted last (if any) has finished; its writes are then visible.
-  void finish() const { await_other_than(kWork); }
-  /// The last timed job's start and finish (read after finish()).
-  [[nodiscard]] Clock::time_point started() const { return started_; }
-  [[nodiscard]] Clock::time_point finished() const { return finished_; }
-
- private:
-  static constexpr int kIdle = 0, kWork = 1, kStop = 2;
-  // ≈ 0.1–0.5 ms of spinning, longer than the gap between two pushes at the sizes where the team
-  // is used. Every kYieldEvery-th turn yields the core: when the machine is busy the two threads
-  // may share one core, and a spinning thread would hold it from the one it waits for (forced
-  // threads = 2 beside another build: 10.0 s of stepping against 2.2 s on one thread before).
-  static constexpr int kSpins = 1 << 14;
-  static constexpr int kYieldEvery = 64;
-
-  int await_other_than(int busy) const {
-    for (int i = 1; i <= kSpins; ++i) {
-      const int now = job_.load(std::memory_order_acquire);
-      if (now != busy) return now;
-      if (i % kYieldEvery == 0) {
-        std::this_thread::yield();
-      } else {
-#if defined(__x86_64__) || defined(__i386__)
-        __builtin_ia32_pause();
-#endif
-      }
-    }
-    int now = job_.load(std::memory_order_acquire);
-    while (now == busy) {
-      job_.wait(busy, std::memory_order_acquire);
-      now = job_.load(std::memory_order_acquire);
-    }
-    return now;
-  }
-
-  void serve() {
-    for (;;) {
-      if (await_other_than(kIdle) == kStop) return;
-      const int caller_cpu = caller_cpu_;  // posted with the job (the next post may change it)
-      if (timed_) started_ = Clock::now();
-      history_.run_ahead(0, rows_, slot_, first_);
-      if (timed_) finished_ = Clock::now();
-      const bool shared = movable_ && caller_cpu >= 0 && internal::current_cpu() == caller_cpu;
-      job_.store(kIdle, std::memory_order_release);
-      job_.notify_one();
-      // On the caller's CPU, the two threads take turns instead of overlapping: move to another
-      // (cpu_placement.hpp). Once that is refused (one allowed CPU), never ask again.
-      if (shared) movable_ = internal::move_off_cpu(caller_cpu);
-    }
-  }
-
-  FastHistory& history_;
-  Eigen::Index slot_ = 0, first_ = 0, rows_ = 0;
-  bool timed_ = false;
-  Clock::time_point started_{}, finished_{};  // written by the worker, read after finish()
-  int caller_cpu_ = -1;                       // where the caller posted the job from
-  bool movable_ = true;                       // the worker's thread only
-  mutable std::atomic<int> job_{kIdle};
-  std::thread worker_;  // last: it starts serving once the members above exist
-};
-
 FastHistory::FastHistory(std::shared_ptr<const ExponentialFit> fit, Eigen::Index dimension,
                          std::size_t capacity)
-    : fit_(checked_fit(std::move(fit), dimension, capacity)), capacity_(capacity) {
+    : fit_(checked_fit(std::move(fit), dimension, capacity)),
+      capacity_(capacity),
+      run_ahead_(*this, {kParallelWork, kRunAheadWork, kBalancedRunAheadFrom}) {
   window_ = static_cast<Eigen::Index>(fit_->window);
   head_reversed_.resize(window_);
   for (Eigen::Index i = 0; i < window_; ++i)
@@ -496,10 +401,6 @@ void FastHistory::run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leavi
   }
 }
 
-void FastHistory::finish_ahead() const {
-  if (ahead_thread_) ahead_thread_->finish();
-}
-
 void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   assert(size_ < capacity_ && x_tilde.size() == ring_.rows());
   const auto n0 = static_cast<std::size_t>(window_);
@@ -525,31 +426,14 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
     ++size_;
     return;
   }
-  // The pushes before the window is full skip the recursions: the thread choice measures again.
-  if (size_ == n0) team_.restart();
-  // Timed from push to push (TeamChooser::next_by_period): the second thread's work overlaps the
-  // caller's step, which the push alone would not show.
-  using Clock = std::chrono::steady_clock;
-  const bool timed_job = ahead_ && timed_ahead_;
-  const Clock::time_point arrival =
-      team_.measuring() || timed_job ? Clock::now() : Clock::time_point{};
-  const int threads = team_.measuring() ? team_.next_by_period(arrival) : team_.next();
-  finish_ahead();
-  if (timed_job) {
-    // The thread's share of this push against the caller's arrival (RunAheadBalance).
-    const Clock::time_point finished = ahead_thread_->finished();
-    balance_.record(std::chrono::duration<double>(finished - ahead_thread_->started()).count(),
-                    std::chrono::duration<double>(arrival - finished).count());
-  }
-  timed_ahead_ = false;
-  const bool run_recursions = recurse && !ahead_;
-  const bool post_next = ahead_thread_ && threads > 1 && size_ + 1 >= n0 && size_ + 1 < capacity_;
+  const internal::RunAhead::Turn turn = run_ahead_.begin(size_, n0, capacity_);
+  const bool run_recursions = recurse && !turn.ahead;
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
     for (Eigen::Index b = lo; b < hi; b += kBlock) {
       const Eigen::Index n = std::min(kBlock, hi - b);
       const internal::FastHistoryBlock rows =
           block(b, n, run_recursions ? terms : 0, slot, first, entering);
-      if (!ahead_) {
+      if (!turn.ahead) {
         recursion_block(rows);
         older_window_block(rows);
       }
@@ -558,20 +442,10 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   };
   // A team of two runs the next push ahead (the caller only makes the window's last addition); a
   // larger team splits the rows.
-  internal::for_blocks(d, ahead_thread_ ? 1 : threads, update);
-  ahead_ = false;
+  internal::for_blocks(d, turn.split, update);
   ++size_;
-  if (post_next) {
-    // The thread takes rows [0, share) of the next push; the caller runs the rest now, while the
-    // thread runs its share, and then returns to its step (RunAheadBalance).
-    const auto next_slot = static_cast<Eigen::Index>(size_ % n0);
-    const auto next_first = static_cast<Eigen::Index>((size_ + 1) % n0);
-    const Eigen::Index share = balance_.rows();
-    timed_ahead_ = balance_.balanced();
-    ahead_thread_->post(next_slot, next_first, share, timed_ahead_);
-    run_ahead(share, d, next_slot, next_first);
-    ahead_ = true;
-  }
+  run_ahead_.end(turn, static_cast<Eigen::Index>(size_ % n0),
+                 static_cast<Eigen::Index>((size_ + 1) % n0));
 }
 
 void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
@@ -581,19 +455,7 @@ void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
 }
 
 void FastHistory::configure_threads(int threads) {
-  finish_ahead();
-  const Eigen::Index work = ring_.rows() * (state_.cols() + window_);
-  int team = internal::team_size(threads, work, kParallelWork);
-  // A team of two runs ahead instead of splitting the rows: it pays from kRunAheadWork.
-  if (team == 1 && internal::team_size(threads, work, kRunAheadWork) == 2) team = 2;
-  team_.configure(threads, team);
-  configure_balance();
-  if (team_.team() == 2) {
-    if (!ahead_thread_) ahead_thread_ = std::make_unique<AheadThread>(*this);
-  } else {
-    ahead_thread_.reset();
-    internal::start_threads(team_.team());
-  }
+  run_ahead_.configure(threads, ring_.rows(), ring_.rows() * (state_.cols() + window_));
 }
 
 void FastHistory::set_threads(int threads) {
@@ -605,22 +467,13 @@ void FastHistory::set_run_ahead_rows(Eigen::Index rows) {
     throw std::invalid_argument("FastHistory: run-ahead rows = " + std::to_string(rows) +
                                 " must be >= 0 (0: balanced by timing)");
   }
-  finish_ahead();
-  run_ahead_rows_ = rows;
-  configure_balance();
-}
-
-void FastHistory::configure_balance() {
-  const Eigen::Index d = ring_.rows();
-  balance_.configure(d, run_ahead_rows_ == 0 && d >= kBalancedRunAheadFrom,
-                     run_ahead_rows_ == 0 ? d : run_ahead_rows_);
-  timed_ahead_ = false;  // a job in flight was timed for the former split
+  run_ahead_.set_fixed_rows(rows);
 }
 
 void FastHistory::visit_state(StateArchive& archive) {
   // The fit (λ_j, w_j, the window's exact weights) is rebuilt by the constructor from the same
   // options; its sizes are checked so that a checkpoint of another fit is refused.
-  finish_ahead();
+  run_ahead_.finish();
   archive.expect("fast.dimension", static_cast<std::size_t>(ring_.rows()));
   archive.expect("fast.capacity", capacity_);
   archive.expect("fast.window", static_cast<std::size_t>(window_));
@@ -641,22 +494,23 @@ void FastHistory::visit_state(StateArchive& archive) {
   archive.dense("fast.tail", tail_);
   archive.dense("fast.sum", sum_);
   // Whether the recursions and the tail already include the next push's x̃ (run ahead).
-  archive.flag("fast.ahead", ahead_);
-  if (ahead_ && (size_ < static_cast<std::size_t>(window_) || size_ >= capacity_ ||
-                 ring_.rows() < kAcrossTermsBelow)) {
+  bool ahead = run_ahead_.ahead();
+  archive.flag("fast.ahead", ahead);
+  if (ahead != run_ahead_.ahead()) run_ahead_.set_ahead(ahead);  // restored
+  if (ahead && (size_ < static_cast<std::size_t>(window_) || size_ >= capacity_ ||
+                ring_.rows() < kAcrossTermsBelow)) {
     throw CheckpointError("checkpoint record 'fast.ahead' is set where no push runs ahead");
   }
 }
 
 void FastHistory::clear() {
-  finish_ahead();
+  run_ahead_.finish();
   ring_.setZero();
   state_.setZero();
   tail_.setZero();
   sum_.setZero();
   size_ = 0;
-  ahead_ = false;
-  timed_ahead_ = false;
+  run_ahead_.reset();
 }
 
 bool fast_history_pays(std::size_t capacity, Eigen::Index dimension) {

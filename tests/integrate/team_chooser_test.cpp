@@ -5,7 +5,8 @@
 //  * the choice never changes a result: FastHistory and FastBlockHistory sums with threads = 0
 //    (measured: one thread for the first trial's calls, the team for the second's, then the
 //    faster) are bitwise those of threads = 1 and of a fixed team of 2, over pushes that cover
-//    both trials.
+//    both trials; and both histories' run-ahead thread (internal/run_ahead.hpp) gives the
+//    one-thread sums for any split of the rows, through checkpoints and clear().
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -455,6 +456,71 @@ TEST(TeamChooser, FastBlockHistorySumsDoNotDependOnTheChoice) {
   }
   EXPECT_TRUE(bitwise_equal(sums[0], sums[1])) << "1 thread against a team of 2";
   EXPECT_TRUE(bitwise_equal(sums[0], sums[2])) << "1 thread against the measured choice";
+}
+
+// FastBlockHistory runs ahead like FastHistory (internal/run_ahead.hpp): for s = 2, 3, 4 stages,
+// any split of the next push between the run-ahead thread and the caller — fixed shares, shares
+// changing from push to push, the balanced default — gives the one-thread sums bit for bit; a
+// checkpoint taken while a push ran ahead ("block_fast.ahead") restores, on one thread or two, to
+// the same continuation; clear() waits for the job in flight and starts afresh.
+TEST(TeamChooser, FastBlockHistoryRunAheadSplitsAndCheckpointsDoNotChangeTheSums) {
+  const Eigen::Index d = 700;  // d (K(2s + 1) + n0 s²) ≥ kRunAheadWork: a team of two runs ahead
+  const int pushes = 60, saved_after = 37;
+  for (const int s : {2, 3, 4}) {
+    const RungeKuttaCq quadrature{s, 0.75, 1};
+    const Eigen::MatrixXd xs = rough_input(d, pushes * s);
+    Eigen::MatrixXd block(d, s);
+    auto run = [&](BlockHistory& history, int from, int to, Eigen::MatrixXd& out,
+                   StateWriter* writer) {
+      for (int k = from; k < to; ++k) {
+        history.push(xs.middleCols(k * s, s));
+        history.sum(block);
+        out.middleCols(k * s, s) = block;
+        if (writer != nullptr && k + 1 == saved_after) history.visit_state(*writer);
+      }
+    };
+    Eigen::MatrixXd reference(d, pushes * s);
+    {
+      const auto one = make_fast_block_history(quadrature, d, 1 << 12);
+      one->set_threads(1);
+      run(*one, 0, pushes, reference, nullptr);
+    }
+    const std::vector<Eigen::Index> fixed = {1, 64, 333, 699, 700, 5000};
+    for (const Eigen::Index rows :
+         {Eigen::Index{-1}, Eigen::Index{0}, Eigen::Index{1}, Eigen::Index{333}}) {
+      const auto made = make_fast_block_history(quadrature, d, 1 << 12);
+      auto& two = dynamic_cast<FastBlockHistory&>(*made);
+      two.set_threads(2);
+      two.set_run_ahead_rows(std::max<Eigen::Index>(rows, 0));
+      Eigen::MatrixXd out(d, pushes * s);
+      StateWriter writer;
+      for (int k = 0; k < pushes; ++k) {
+        if (rows < 0) two.set_run_ahead_rows(fixed[static_cast<std::size_t>(k) % fixed.size()]);
+        run(two, k, k + 1, out, &writer);
+      }
+      EXPECT_TRUE(bitwise_equal(out, reference)) << "s = " << s << ", run-ahead rows " << rows;
+      EXPECT_GE(two.run_ahead_rows(), 1);
+      EXPECT_LE(two.run_ahead_rows(), d);
+      for (const int threads : {1, 2}) {
+        const auto restored = make_fast_block_history(quadrature, d, 1 << 12);
+        restored->set_threads(threads);
+        StateReader reader(writer.bytes(), "test state");
+        restored->visit_state(reader);
+        reader.finish();
+        Eigen::MatrixXd rest = out;
+        run(*restored, saved_after, pushes, rest, nullptr);
+        EXPECT_TRUE(bitwise_equal(rest, reference))
+            << "s = " << s << ", rows " << rows << ", restored on " << threads << " thread(s)";
+      }
+      two.clear();
+      Eigen::MatrixXd again(d, pushes * s);
+      run(two, 0, pushes, again, nullptr);
+      EXPECT_TRUE(bitwise_equal(again, reference)) << "s = " << s << ", after clear()";
+    }
+  }
+  const auto history = make_fast_block_history(RungeKuttaCq{2, 0.75, 1}, d, 1 << 12);
+  EXPECT_THROW(dynamic_cast<FastBlockHistory&>(*history).set_run_ahead_rows(-1),
+               std::invalid_argument);
 }
 
 #if defined(__linux__)

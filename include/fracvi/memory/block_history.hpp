@@ -31,10 +31,14 @@
 
 #include "fracvi/core/state_archive.hpp"
 #include "fracvi/fractional/runge_kutta_cq.hpp"
-#include "fracvi/internal/team_chooser.hpp"
+#include "fracvi/internal/run_ahead.hpp"
 #include "fracvi/memory/history.hpp"
 
 namespace fracvi {
+
+namespace internal {
+struct BlockHistoryRows;  // the rows one kernel call updates (block_history.cpp)
+}  // namespace internal
 
 class BlockHistory {
  public:
@@ -64,8 +68,9 @@ class BlockHistory {
   [[nodiscard]] virtual std::string_view kind() const = 0;
   /// kind(), memory_bytes() and, for the fast history, K and n0 (history.hpp).
   [[nodiscard]] virtual HistoryReport report() const { return {kind(), memory_bytes(), 0, 0}; }
-  /// Threads for the work over degrees of freedom (0 = OpenMP's default). Only the fast history
-  /// uses them (from kParallelWork multiply–adds per step); the direct one ignores it.
+  /// Threads for the work over degrees of freedom (0 = measured against one). Only the fast
+  /// history uses them (a run-ahead thread from kRunAheadWork multiply–adds per step, split rows
+  /// from kParallelWork); the direct one ignores it.
   virtual void set_threads(int threads) { static_cast<void>(threads); }
   /// Saves or restores the pushed blocks and every accumulator (core/state_archive.hpp), so that a
   /// restored history continues bit-for-bit; the weights (and the tail's fit) are rebuilt by the
@@ -104,7 +109,7 @@ class DirectBlockHistory final : public BlockHistory {
 };
 
 /// Exact blocks for the n0 most recent lags and the rank-one sum-of-decays tail of an RkcqTail.
-class FastBlockHistory final : public BlockHistory {
+class FastBlockHistory final : public BlockHistory, private internal::RunAheadJob {
  public:
   /// A history of the weights W_{j+lag} on a tail representation of the plain weights W_j
   /// (e.g. shared_rkcq_tail()): the window is tail->window − lag blocks (tail->head[lag …]), the
@@ -126,11 +131,21 @@ class FastBlockHistory final : public BlockHistory {
   }
   [[nodiscard]] std::string_view kind() const override { return "fast"; }
   [[nodiscard]] std::size_t memory_bytes() const override {
-    return static_cast<std::size_t>(ring_.size() + state_.size() + sum_.size() + head_.size() +
-                                    right_.size() + left_.size() + decay_.size()) *
+    return static_cast<std::size_t>(ring_.size() + state_.size() + partial_.size() + sum_.size() +
+                                    head_.size() + right_.size() + left_.size() + decay_.size()) *
            sizeof(double);
   }
+  /// Threads for push() (0 = measured against one; internal/run_ahead.hpp), as FastHistory's: a
+  /// team of two runs the next push's recursions and older window on its second thread while the
+  /// caller computes the rest of its step (from kRunAheadWork multiply–adds per push); a larger
+  /// team splits the degrees of freedom (from kParallelWork).
   void set_threads(int threads) override;
+  /// Rows [0, rows) of each next push go to the run-ahead thread of a team of two (0, the
+  /// default: balanced by timing from kBalancedRunAheadFrom degrees of freedom). The split never
+  /// changes a result. Throws std::invalid_argument for rows < 0.
+  void set_run_ahead_rows(Eigen::Index rows);
+  /// The run-ahead thread's share of the next push.
+  [[nodiscard]] Eigen::Index run_ahead_rows() const { return run_ahead_.rows(); }
   void visit_state(StateArchive& archive) override;
 
   [[nodiscard]] const RkcqTail& tail() const { return *tail_; }
@@ -154,13 +169,27 @@ class FastBlockHistory final : public BlockHistory {
   Eigen::MatrixXd right_;  // K × s, column e: (v_i)_e
   Eigen::MatrixXd left_;   // K × s, column c: γ_i (u_i)_c
   Eigen::MatrixXd state_;  // d × K, column i: Y_i
-  Eigen::MatrixXd sum_;    // d × s, the sum after the last push
+  // d × s: the recursions' terms and the window's before its first addition with Z_k (the sum
+  // but for those; block_history.cpp, newest_start).
+  Eigen::MatrixXd partial_;
+  Eigen::MatrixXd sum_;  // d × s, the sum after the last push
   std::size_t size_ = 0;
-  internal::TeamChooser team_;  // threads per push: measured (threads = 0) or as set
+  // The thread count and the run-ahead thread (last: its thread is joined before the arrays it
+  // writes are destroyed).
+  internal::RunAhead run_ahead_;
+
   // Multiply–adds per push: K(2s + 1) + n0·s² per degree of freedom.
   [[nodiscard]] Eigen::Index push_work() const {
     return sum_.rows() * (decay_.size() * (2 * stages_ + 1) + window_ * stages_ * stages_);
   }
+  // Rows [b, b + n) of a push: `terms` recursions (0: none) fed from ring position `slot`, the
+  // window from position `first`, the new block (null: the recursions and older window alone).
+  internal::BlockHistoryRows rows(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
+                                  Eigen::Index slot, Eigen::Index first,
+                                  const Eigen::Ref<const Eigen::MatrixXd>* block);
+  // Rows [lo, hi) of the next push's recursions and older window, into partial_.
+  void run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot,
+                 Eigen::Index first) override;
 };
 
 /// Options of the process-wide cache of tail representations (the fit takes 0.05–0.5 s).

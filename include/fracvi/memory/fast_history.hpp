@@ -33,7 +33,9 @@
 // after posting them, at the same time, before it returns to its step: at d = 10^4 the whole
 // history on the second thread outlasted the caller's step (its 2 MB of state comes from L3), and
 // the split is balanced by timing (internal/run_ahead_balance.hpp). The operations and their order
-// are those of the one-thread push in every row, so the sums are bit for bit the same.
+// are those of the one-thread push in every row, so the sums are bit for bit the same. The thread
+// count, the second thread and their protocol are internal::RunAhead's (internal/run_ahead.hpp),
+// shared with FastBlockHistory.
 #pragma once
 
 #include <Eigen/Dense>
@@ -42,8 +44,7 @@
 #include <string_view>
 
 #include "fracvi/fractional/exponential_fit.hpp"
-#include "fracvi/internal/run_ahead_balance.hpp"
-#include "fracvi/internal/team_chooser.hpp"
+#include "fracvi/internal/run_ahead.hpp"
 #include "fracvi/memory/history.hpp"
 
 namespace fracvi {
@@ -52,7 +53,7 @@ namespace internal {
 struct FastHistoryBlock;  // the rows one kernel call updates (fast_history.cpp)
 }  // namespace internal
 
-class FastHistory final : public History {
+class FastHistory final : public History, private internal::RunAheadJob {
  public:
   /// A history on a precomputed fit (e.g. shared_exponential_fit()). Throws std::invalid_argument
   /// if fit is null, dimension < 1, capacity < 1, or the fit does not cover lags up to
@@ -99,7 +100,7 @@ class FastHistory final : public History {
   /// the thread below. The split never changes a result. Throws std::invalid_argument for rows < 0.
   void set_run_ahead_rows(Eigen::Index rows);
   /// The run-ahead thread's share of the next push (rows [0, run_ahead_rows())).
-  [[nodiscard]] Eigen::Index run_ahead_rows() const { return balance_.rows(); }
+  [[nodiscard]] Eigen::Index run_ahead_rows() const { return run_ahead_.rows(); }
   /// The window (ring), the K recursions Y_j, the tail and the last sum.
   void visit_state(StateArchive& archive) override;
 
@@ -126,18 +127,11 @@ class FastHistory final : public History {
   Eigen::VectorXd tail_;
   Eigen::VectorXd sum_;  // the whole sum after the last push (d)
   std::size_t size_ = 0;
-  internal::TeamChooser team_;         // threads per push: measured (threads = 0) or as set
-  internal::RunAheadBalance balance_;  // the run-ahead thread's rows and the caller's
-  Eigen::Index run_ahead_rows_ = 0;    // as set (0: balanced)
-  bool timed_ahead_ = false;           // the job in flight records its times for balance_
-  // Y_j and tail_ already hold the next push's recursions and window but for its last addition
-  // (posted to the second thread, or restored from a checkpoint taken while they were).
-  bool ahead_ = false;
-  class AheadThread;  // the second thread of a team of two (fast_history.cpp)
-  std::unique_ptr<AheadThread> ahead_thread_;
+  // The thread count and the run-ahead thread (last: its thread is joined before the arrays it
+  // writes are destroyed).
+  internal::RunAhead run_ahead_;
 
   void configure_threads(int threads);
-  void configure_balance();
   // Rows [b, b + n) of a push: `terms` recursions (0: none) with x̃ from ring column `slot`, the
   // window from column `first` (wrapping at n0), the new value `entering` (null: the recursions
   // alone), written into ring column `slot`.
@@ -145,8 +139,8 @@ class FastHistory final : public History {
                                    Eigen::Index slot, Eigen::Index first, const double* entering);
   // Rows [lo, hi) of the next push's recursions with x̃ from ring column `leaving_slot`, and its
   // tail plus the window's terms before the last addition, from column `first` on, into tail_.
-  void run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot, Eigen::Index first);
-  void finish_ahead() const;  // waits for recursions in flight
+  void run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot,
+                 Eigen::Index first) override;
 };
 
 /// Multiply–adds per step ((K + n0)·d: the recursions and the window) from which FastHistory
