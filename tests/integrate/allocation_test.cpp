@@ -6,8 +6,8 @@
 // Covered: linear (constant Hessian, one solve per step) and nonlinear (Newton) paths, local
 // (α = 1/2, 1), direct and fast (α = 0.75) histories, forcing, R = 0, a fixed-size autodiff
 // potential, large FPUT chains on the banded path with OpenMP threads, a formula state force
-// g(x, v, t), the Lobatto schemes with method.split = "series". Control: a dynamic-size
-// autodiff potential does allocate, so the counter is live.
+// g(x, v, t), the Lobatto schemes with method.split = "series", the block history's run-ahead
+// thread. Control: a dynamic-size autodiff potential does allocate, so the counter is live.
 #include <gtest/gtest.h>
 
 #include <cstddef>
@@ -16,6 +16,7 @@
 #include "../support/test_problems.hpp"
 #include "fracvi/integrate/dense_output.hpp"
 #include "fracvi/integrate/integrator.hpp"
+#include "fracvi/memory/block_history.hpp"
 #include "fracvi/model/autodiff_potential.hpp"
 #include "fracvi/model/chain_potential.hpp"
 #include "fracvi/model/expression_potential.hpp"
@@ -203,6 +204,31 @@ TEST_F(NoAllocation, BandedChainWithThreadedFastHistory) {
     Integrator integ(large_chain(8000, 200, 1), fvi_gl(), options);
     ASSERT_EQ(integ.linear_solver(), LinearSolver::kBanded);
     EXPECT_EQ(allocations_while_stepping(integ), 0u) << "threads = " << threads;
+  }
+}
+
+// The Lobatto schemes' block history on a team of two: its second thread runs the next push's
+// recursions and older window (internal/run_ahead.hpp), started by set_threads; threads = 0 also
+// times its pushes and switches. (Measured at the history: a Lobatto step on a sparse system above
+// d = 96 allocates in Eigen's SparseLU solve, whose supernodal triangular solve sizes a work
+// vector per call.)
+TEST_F(NoAllocation, BlockHistoryRunAhead) {
+  const Eigen::Index d = 700;  // d (K(2s + 1) + n0 s²) ≥ kRunAheadWork
+  for (const int s : {2, 3, 4}) {
+    for (const int threads : {0, 2}) {
+      const auto history = make_fast_block_history(RungeKuttaCq{s, 0.75, 1}, d, 200);
+      history->set_threads(threads);
+      Eigen::MatrixXd block = Eigen::MatrixXd::Ones(d, s), sum(d, s);
+      g_allocations = 0;
+      g_counting = true;
+      for (int k = 0; k < 200; ++k) {
+        block *= -0.99;
+        history->push(block);
+        history->sum(sum);
+      }
+      g_counting = false;
+      EXPECT_EQ(g_allocations, 0u) << "s = " << s << ", threads = " << threads;
+    }
   }
 }
 
