@@ -284,6 +284,7 @@ class StageMatrix {
     sparse_matrix_.setFromTriplets(triplets_.begin(), triplets_.end());
     sparse_matrix_.makeCompressed();
     sparse_lu_.analyzePattern(sparse_matrix_);
+    sparse_work_.setZero(n);
   }
 
   [[nodiscard]] bool needs_hessians() const { return internal_hessians_; }
@@ -349,13 +350,56 @@ class StageMatrix {
   void solve_in_place(Eigen::VectorXd& rhs, Eigen::VectorXd& scratch) const {
     if (!sparse_) {
       scratch.noalias() = lu_.solve(rhs);
-    } else {
-      scratch = sparse_lu_.solve(rhs);
+      rhs.swap(scratch);
+      return;
     }
-    rhs.swap(scratch);
+    // Eigen's SparseLU::solve, step by step (SparseLU.h, _solve_impl), without its two
+    // allocations per call: the supernodal L solve sizes a work vector each time, and the final
+    // in-place column permutation a mask (a Lobatto step on a 600-mass chain allocated 2–4.5
+    // times; bench/RESULTS.md). The same operations in the same order: the solution is bitwise
+    // Eigen's. scratch = P_r rhs, then L and U in place, then rhs = P_c⁻¹ scratch.
+    scratch.noalias() = sparse_lu_.rowsPermutation() * rhs;
+    lower_solve_in_place(scratch);
+    sparse_lu_.matrixU().solveInPlace(scratch);
+    rhs.noalias() = sparse_lu_.colsPermutation().inverse() * scratch;
   }
 
  private:
+  // MappedSuperNodalMatrix::solveInPlace (Eigen/src/SparseLU/SparseLU_SupernodalMatrix.h) for one
+  // right-hand side, with the work vector sized once (sparse_work_) instead of on every call.
+  void lower_solve_in_place(Eigen::VectorXd& x) const {
+    using Supernodal = decltype(sparse_lu_.matrixL().m_mapL);
+    const auto& lower = sparse_lu_.matrixL().m_mapL;
+    const double* values = lower.valuePtr();
+    Eigen::VectorXd& work = sparse_work_;
+    for (Eigen::Index k = 0; k <= lower.nsuper(); ++k) {
+      const Eigen::Index first = lower.supToCol()[k];  // the supernode's first column
+      const Eigen::Index start = lower.rowIndexPtr()[first];
+      const Eigen::Index rows = lower.rowIndexPtr()[first + 1] - start;
+      const Eigen::Index cols = lower.supToCol()[k + 1] - first;
+      const Eigen::Index below = rows - cols;  // rows below the diagonal block
+      if (cols == 1) {
+        typename std::remove_cvref_t<Supernodal>::InnerIterator it(lower, first);
+        ++it;  // past the diagonal
+        for (; it; ++it) x(it.row()) -= x(first) * it.value();
+        continue;
+      }
+      const Eigen::Index at = lower.colIndexPtr()[first];
+      const Eigen::Index lda = lower.colIndexPtr()[first + 1] - at;
+      using Block = Eigen::Map<const Eigen::MatrixXd, 0, Eigen::OuterStride<>>;
+      const Block diagonal(values + at, cols, cols, Eigen::OuterStride<>(lda));
+      Eigen::Map<Eigen::VectorXd> u(x.data() + first, cols);
+      u = diagonal.triangularView<Eigen::UnitLower>().solve(u);
+      const Block rest(values + at + cols, below, cols, Eigen::OuterStride<>(lda));
+      work.head(below).noalias() = rest * u;
+      Eigen::Index index = start + cols;
+      for (Eigen::Index i = 0; i < below; ++i, ++index) {
+        x(lower.rowIndex()[index]) -= work(i);
+        work(i) = 0.0;
+      }
+    }
+  }
+
   void set_value(std::size_t at, double value) {
     triplets_[at] = Eigen::Triplet<double>(triplets_[at].row(), triplets_[at].col(), value);
   }
@@ -386,6 +430,7 @@ class StageMatrix {
   std::vector<double> hessian_values_;
   Eigen::SparseMatrix<double> sparse_matrix_;
   Eigen::SparseLU<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> sparse_lu_;
+  mutable Eigen::VectorXd sparse_work_;  // lower_solve_in_place's (zero between calls)
 };
 
 // ---------------------------------------------------------------------------------------------

@@ -6,8 +6,9 @@
 // Covered: linear (constant Hessian, one solve per step) and nonlinear (Newton) paths, local
 // (α = 1/2, 1), direct and fast (α = 0.75) histories, forcing, R = 0, a fixed-size autodiff
 // potential, large FPUT chains on the banded path with OpenMP threads, a formula state force
-// g(x, v, t), the Lobatto schemes with method.split = "series", the block history's run-ahead
-// thread. Control: a dynamic-size autodiff potential does allocate, so the counter is live.
+// g(x, v, t), the Lobatto schemes with method.split = "series" and on a sparse chain, the block
+// history's run-ahead thread. Control: a dynamic-size autodiff potential does allocate, so the
+// counter is live.
 #include <gtest/gtest.h>
 
 #include <cstddef>
@@ -175,14 +176,15 @@ TEST_F(NoAllocation, NonlinearChainD40) {
 // Hessian, LAPACK's tridiagonal Cholesky, and OpenMP threads in the fast history ((K + n0)·d above
 // kParallelWork) and in the chain's loops (d ≥ kChainParallelDofs). OpenMP starts its thread team
 // during set-up (set_threads / the chain's constructor), so the steps allocate nothing.
-InitialValueProblem large_chain(Eigen::Index d, std::size_t steps, int threads) {
+InitialValueProblem large_chain(Eigen::Index d, std::size_t steps, int threads,
+                                double quartic = 1.0) {
   InitialValueProblem p;
   p.model.mass = ModelMatrix::identity(d, 1.0);
   p.model.damping = ModelMatrix::identity(d, 0.1);
   p.model.alpha = 0.75;
   ChainOptions chain;
   chain.dimension = d;
-  chain.quartic = 1.0;
+  chain.quartic = quartic;
   chain.threads = threads;
   p.model.potential = make_chain_potential(chain);
   p.x0 = Eigen::VectorXd::LinSpaced(d, 0.0, 3.0).array().sin() * 0.3;
@@ -209,9 +211,7 @@ TEST_F(NoAllocation, BandedChainWithThreadedFastHistory) {
 
 // The Lobatto schemes' block history on a team of two: its second thread runs the next push's
 // recursions and older window (internal/run_ahead.hpp), started by set_threads; threads = 0 also
-// times its pushes and switches. (Measured at the history: a Lobatto step on a sparse system above
-// d = 96 allocates in Eigen's SparseLU solve, whose supernodal triangular solve sizes a work
-// vector per call.)
+// times its pushes and switches.
 TEST_F(NoAllocation, BlockHistoryRunAhead) {
   const Eigen::Index d = 700;  // d (K(2s + 1) + n0 s²) ≥ kRunAheadWork
   for (const int s : {2, 3, 4}) {
@@ -228,6 +228,24 @@ TEST_F(NoAllocation, BlockHistoryRunAhead) {
       }
       g_counting = false;
       EXPECT_EQ(g_allocations, 0u) << "s = " << s << ", threads = " << threads;
+    }
+  }
+}
+
+// The Lobatto schemes on a sparse system (d > 96: the stage matrix is factored by Eigen's
+// SparseLU, whose solve allocated a work vector and a permutation mask on every call before
+// StageMatrix took it step by step), on one thread and with the history's run-ahead thread. The
+// linear chain: its stage matrix is factored once, at set-up. (A refactorisation — Newton's
+// Jacobian refreshed for a nonlinear potential with internal stages, s ≥ 3 — still allocates:
+// SparseLU's factorize and setFromTriplets size their storage on every call.)
+TEST_F(NoAllocation, LobattoSparseChain) {
+  for (const char* name : {"fvi-lobatto2", "fvi-lobatto3", "fvi-lobatto4"}) {
+    for (const int threads : {1, 0, 2}) {
+      IntegratorOptions options;
+      options.history = HistoryKind::kFast;
+      options.threads = threads;
+      Integrator integ(large_chain(600, 60, 1, 0.0), *parse_method(name), options);
+      EXPECT_EQ(allocations_while_stepping(integ), 0u) << name << ", threads = " << threads;
     }
   }
 }
