@@ -1,4 +1,4 @@
-// Where a helper thread runs (internal): FastHistory's run-ahead thread must not share the
+// Where a helper thread runs (internal): a fast history's run-ahead thread must not share the
 // caller's CPU.
 //
 // Why: Linux places a woken thread near its waker, and on the 2-vCPU machine the run-ahead thread

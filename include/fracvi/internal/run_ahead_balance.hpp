@@ -1,5 +1,6 @@
-// How many rows of the next push the run-ahead thread of a FastHistory takes, the caller taking
-// the rest (internal; fast_history.hpp, "Recursions one step ahead").
+// How many rows of the next push the run-ahead thread of a fast history (FastHistory,
+// FastBlockHistory) takes, the caller taking the rest (internal; internal/run_ahead.hpp and
+// fast_history.hpp, "Recursions one step ahead").
 #pragma once
 
 #include <Eigen/Core>
