@@ -395,6 +395,17 @@ FRACVI_HOT_KERNEL void newest_rows4(const BlockHistoryRows& blk) {
   newest_rows<4>(blk);
 }
 
+// The two kernels of a push for s stages (s = 2, 3, 4: checked_tail() and RungeKuttaCq).
+struct StageKernels {
+  void (*older)(const BlockHistoryRows&);
+  void (*newest)(const BlockHistoryRows&);
+};
+StageKernels stage_kernels(Eigen::Index s) {
+  if (s == 2) return {older_rows2, newest_rows2};
+  if (s == 3) return {older_rows3, newest_rows3};
+  return {older_rows4, newest_rows4};
+}
+
 // Blocks of kBlock rows keep the s output columns in L1 while the K recursions pass over them.
 constexpr Eigen::Index kBlock = 256;
 
@@ -424,16 +435,15 @@ internal::BlockHistoryRows FastBlockHistory::rows(Eigen::Index b, Eigen::Index n
 
 void FastBlockHistory::run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot,
                                  Eigen::Index first) {
-  const Eigen::Index s = stages_, terms = decay_.size();
-  void (*older)(const BlockHistoryRows&) =
-      s == 2 ? older_rows2 : (s == 3 ? older_rows3 : older_rows4);
+  const Eigen::Index terms = decay_.size();
+  const auto older = stage_kernels(stages_).older;
   for (Eigen::Index b = lo; b < hi; b += kBlock)
     older(rows(b, std::min(kBlock, hi - b), terms, leaving_slot, first, nullptr));
 }
 
 void FastBlockHistory::push(const Eigen::Ref<const Eigen::MatrixXd>& block) {
   assert(size_ < capacity_ && block.rows() == sum_.rows() && block.cols() == stages_);
-  const Eigen::Index s = stages_, n0 = window_, terms = decay_.size(), d = sum_.rows();
+  const Eigen::Index n0 = window_, terms = decay_.size(), d = sum_.rows();
   const auto window = static_cast<std::size_t>(n0);
   const auto slot = static_cast<Eigen::Index>(size_ % window);
   const bool recurse = size_ >= window;
@@ -441,17 +451,14 @@ void FastBlockHistory::push(const Eigen::Ref<const Eigen::MatrixXd>& block) {
   // (each position s columns); before k = n0 − 1 the missing ones are the zeros the ring was
   // cleared to.
   const auto first = static_cast<Eigen::Index>((size_ + 1) % window);
-  void (*older)(const BlockHistoryRows&) =
-      s == 2 ? older_rows2 : (s == 3 ? older_rows3 : older_rows4);
-  void (*newest)(const BlockHistoryRows&) =
-      s == 2 ? newest_rows2 : (s == 3 ? newest_rows3 : newest_rows4);
+  const StageKernels kernels = stage_kernels(stages_);
   const internal::RunAhead::Turn turn = run_ahead_.begin(size_, window, capacity_);
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
     for (Eigen::Index b = lo; b < hi; b += kBlock) {
       const BlockHistoryRows blk =
           rows(b, std::min(kBlock, hi - b), recurse ? terms : 0, slot, first, &block);
-      if (!turn.ahead) older(blk);
-      newest(blk);
+      if (!turn.ahead) kernels.older(blk);
+      kernels.newest(blk);
     }
   };
   // A team of two runs the next push ahead (the caller only makes the window's last additions);

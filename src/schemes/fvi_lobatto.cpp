@@ -284,7 +284,7 @@ class StageMatrix {
     sparse_matrix_.setFromTriplets(triplets_.begin(), triplets_.end());
     sparse_matrix_.makeCompressed();
     sparse_lu_.analyzePattern(sparse_matrix_);
-    sparse_work_.setZero(n);
+    sparse_work_.resize(n);
   }
 
   [[nodiscard]] bool needs_hessians() const { return internal_hessians_; }
@@ -395,7 +395,6 @@ class StageMatrix {
       Eigen::Index index = start + cols;
       for (Eigen::Index i = 0; i < below; ++i, ++index) {
         x(lower.rowIndex()[index]) -= work(i);
-        work(i) = 0.0;
       }
     }
   }
@@ -430,7 +429,7 @@ class StageMatrix {
   std::vector<double> hessian_values_;
   Eigen::SparseMatrix<double> sparse_matrix_;
   Eigen::SparseLU<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> sparse_lu_;
-  mutable Eigen::VectorXd sparse_work_;  // lower_solve_in_place's (zero between calls)
+  mutable Eigen::VectorXd sparse_work_;  // lower_solve_in_place's products (n ≥ any supernode)
 };
 
 // ---------------------------------------------------------------------------------------------
