@@ -45,6 +45,8 @@
 #include <string>
 #include <vector>
 
+#include <lapacke.h>
+
 #include "forcing_moments.hpp"
 #include "fractional_series.hpp"
 #include "fracvi/core/error.hpp"
@@ -166,10 +168,18 @@ class PowerMoments {
 
 // ---------------------------------------------------------------------------------------------
 // The stage system's Newton matrix, (s − 1)d × (s − 1)d, unknown stage m (1 … s − 1) at columns
-// (m − 1)d …, equation row i (0 … s − 2) at rows i·d …: dense LU, or sparse LU (Eigen's SparseLU,
-// COLAMD ordering) when M, R and ∇²U are stored sparse. The matrix is not symmetric (W_0 and the
-// row/column selection of K_D are not), so the symmetric factorisations of the midpoint schemes do
-// not apply.
+// (m − 1)d …, equation row i (0 … s − 2) at rows i·d …: dense LU; or, when M, R and ∇²U are stored
+// sparse, band LU (LAPACK dgbtrf/dgbtrs) on the stages interleaved per degree of freedom, or sparse
+// LU (Eigen's SparseLU, COLAMD ordering). The matrix is not symmetric (W_0 and the row/column
+// selection of K_D are not), so the symmetric factorisations of the midpoint schemes do not apply.
+//
+// Band: every block (i, m) has the pattern of M, R and ∇²U, of bandwidth b in the degrees of
+// freedom; numbering unknown (dof j, stage m) as j(s − 1) + m − 1 (and the equations alike) puts
+// every entry within (s − 1)(b + 1) − 1 of the diagonal — 3 for a chain with s = 3. dgbtrf then
+// costs O(d·s³b²) and works in storage sized at set-up: the refactorisations of a nonlinear
+// potential do not allocate (Eigen's SparseLU::factorize does, on every call). kAuto takes the band
+// up to the bandwidth the midpoint schemes' band Cholesky does (kMaxAutoBandwidth), sparse LU
+// beyond (a periodic chain: b = d − 1).
 class StageMatrix {
  public:
   /// Block row r holds the equation of stage r + first_equation, block column c the unknown
@@ -207,8 +217,10 @@ class StageMatrix {
     const bool structured =
         mass.is_sparse() && (!damped || damping.is_sparse()) &&
         (potential == nullptr || !internal_hessians_ || potential->has_sparse_hessian());
-    sparse_ = requested == LinearSolver::kSparse || requested == LinearSolver::kBanded ||
-              (requested == LinearSolver::kAuto && structured && n > kDenseUpTo);
+    kind_ = requested == LinearSolver::kSparse || requested == LinearSolver::kBanded ||
+                    (requested == LinearSolver::kAuto && structured && n > kDenseUpTo)
+                ? LinearSolver::kSparse
+                : LinearSolver::kDense;
     if (state_force != nullptr) {
       // ∂g/∂v couples every stage to every unknown and is not symmetric: dense LU only.
       if (requested == LinearSolver::kSparse || requested == LinearSolver::kBanded) {
@@ -220,13 +232,13 @@ class StageMatrix {
             "in x or v): its Jacobian couples all stages; use linear_solver = \"dense\" or "
             "\"auto\"");
       }
-      sparse_ = false;
+      kind_ = LinearSolver::kDense;
       force_value_.setZero(d_);
       force_velocity_.setZero(d_);
       force_dx_.setZero(d_, d_);
       force_dv_.setZero(d_, d_);
     }
-    if (!sparse_) {
+    if (kind_ == LinearSolver::kDense) {
       if (n > kMaxDenseDimension) {
         throw ValidationError(
             "the stage system of this Lobatto scheme would be factored dense ((s-1)d = " +
@@ -280,6 +292,42 @@ class StageMatrix {
         }
       }
     }
+    // The band of the interleaved numbering (the header above); kAuto keeps sparse LU for wide
+    // bands.
+    for (const Eigen::Triplet<double>& t : triplets_) {
+      const Eigen::Index row = interleaved(t.row()), col = interleaved(t.col());
+      lower_band_ = std::max(lower_band_, row - col);
+      upper_band_ = std::max(upper_band_, col - row);
+    }
+    const Eigen::Index dof_bandwidth = (std::max(lower_band_, upper_band_) + 1) / (s_ - 1) - 1;
+    band_rows_ = 2 * lower_band_ + upper_band_ + 1;  // + kl rows for the pivoting's fill
+    const double band_bytes = 8.0 * static_cast<double>(band_rows_) * static_cast<double>(n);
+    if (requested == LinearSolver::kBanded ||
+        (requested == LinearSolver::kAuto && dof_bandwidth <= kMaxAutoBandwidth &&
+         band_bytes <= kMaxBandBytes)) {
+      kind_ = LinearSolver::kBanded;
+      if (band_bytes > kMaxBandBytes) {
+        throw ValidationError(
+            "the band LU of this Lobatto scheme's stage system would need " +
+            format_number(band_bytes / 1e9) + " GB (" + std::to_string(n) + " unknowns, " +
+            std::to_string(band_rows_) +
+            " band rows): method.linear_solver = \"banded\" needs a narrow band (M, R and the "
+            "Hessian of bandwidth <= " +
+            std::to_string(kMaxAutoBandwidth) + " in the degrees of freedom); use \"sparse\"");
+      }
+      band_constant_.assign(static_cast<std::size_t>(band_rows_ * n), 0.0);
+      band_lu_.assign(band_constant_.size(), 0.0);
+      pivots_.assign(static_cast<std::size_t>(n), 0);
+      band_at_.reserve(triplets_.size());
+      for (const Eigen::Triplet<double>& t : triplets_) {
+        const Eigen::Index row = interleaved(t.row()), col = interleaved(t.col());
+        band_at_.push_back(
+            static_cast<std::size_t>(lower_band_ + upper_band_ + row - col + col * band_rows_));
+      }
+      for (std::size_t k = 0; k < constant_count_; ++k)
+        band_constant_[band_at_[k]] += triplets_[k].value();
+      return;
+    }
     sparse_matrix_.resize(n, n);
     sparse_matrix_.setFromTriplets(triplets_.begin(), triplets_.end());
     sparse_matrix_.makeCompressed();
@@ -288,7 +336,8 @@ class StageMatrix {
   }
 
   [[nodiscard]] bool needs_hessians() const { return internal_hessians_; }
-  [[nodiscard]] bool is_sparse() const { return sparse_; }
+  /// kDense, kBanded or kSparse.
+  [[nodiscard]] LinearSolver kind() const { return kind_; }
   /// How many times factor() ran (a checkpoint sets it back: set_factorizations).
   [[nodiscard]] std::size_t factorizations() const { return factorizations_; }
   void set_factorizations(std::size_t count) { factorizations_ = count; }
@@ -300,7 +349,7 @@ class StageMatrix {
   bool factor(const Eigen::MatrixXd& stages, const Eigen::VectorXd& times,
               const Eigen::MatrixXd& velocities) {
     ++factorizations_;
-    if (!sparse_) {
+    if (kind_ == LinearSolver::kDense) {
       jacobian_ = constant_;
       for (int i = 1; internal_hessians_ && i + 1 < s_; ++i) {
         potential_->hessian(stages.col(i), times(i), hessian_);
@@ -338,6 +387,15 @@ class StageMatrix {
         if (pattern_[e].row != pattern_[e].col) set_value(at++, v);
       }
     }
+    if (kind_ == LinearSolver::kBanded) {
+      std::copy(band_constant_.begin(), band_constant_.end(), band_lu_.begin());
+      for (std::size_t k = constant_count_; k < triplets_.size(); ++k)
+        band_lu_[band_at_[k]] += triplets_[k].value();
+      const auto n = static_cast<lapack_int>(pivots_.size());
+      return LAPACKE_dgbtrf_work(LAPACK_COL_MAJOR, n, n, static_cast<lapack_int>(lower_band_),
+                                 static_cast<lapack_int>(upper_band_), band_lu_.data(),
+                                 static_cast<lapack_int>(band_rows_), pivots_.data()) == 0;
+    }
     if (internal_hessians_) {
       sparse_matrix_.setFromTriplets(triplets_.begin(), triplets_.end());
       sparse_matrix_.makeCompressed();
@@ -348,9 +406,20 @@ class StageMatrix {
 
   /// rhs ← J⁻¹ rhs.
   void solve_in_place(Eigen::VectorXd& rhs, Eigen::VectorXd& scratch) const {
-    if (!sparse_) {
+    if (kind_ == LinearSolver::kDense) {
       scratch.noalias() = lu_.solve(rhs);
       rhs.swap(scratch);
+      return;
+    }
+    if (kind_ == LinearSolver::kBanded) {
+      // Stage-major (d × (s − 1), column m − 1 = stage m) to interleaved ((s − 1) × d): a
+      // transpose.
+      const Eigen::Index stages = s_ - 1;
+      Eigen::Map<Eigen::MatrixXd>(scratch.data(), stages, d_) =
+          Eigen::Map<const Eigen::MatrixXd>(rhs.data(), d_, stages).transpose();
+      band_solve_in_place(scratch.data());
+      Eigen::Map<Eigen::MatrixXd>(rhs.data(), d_, stages) =
+          Eigen::Map<const Eigen::MatrixXd>(scratch.data(), stages, d_).transpose();
       return;
     }
     // Eigen's SparseLU::solve, step by step (SparseLU.h, _solve_impl), without its two
@@ -399,6 +468,38 @@ class StageMatrix {
     }
   }
 
+  // x ← J⁻¹x from dgbtrf's factor: what dgbtrs does for one right-hand side (the row interchanges
+  // and L's multipliers column by column, then U, of bandwidth kl + ku, backwards), in plain loops.
+  // dgbtrs takes each column through a level-2 BLAS call (dger for L, dtbsv for U): with the
+  // reference BLAS, those calls on columns of 3–6 entries were 30 % of an fvi-lobatto3 step of
+  // the β-FPUT chain at d = 1000 (perf), and the step ran 1.2–1.6× slower than with sparse LU.
+  void band_solve_in_place(double* x) const {
+    const Eigen::Index n = static_cast<Eigen::Index>(pivots_.size());
+    const Eigen::Index kv = lower_band_ + upper_band_;  // row of the diagonal in band storage
+    const double* ab = band_lu_.data();
+    for (Eigen::Index j = 0; j + 1 < n; ++j) {
+      const Eigen::Index pivot = pivots_[static_cast<std::size_t>(j)] - 1;
+      if (pivot != j) std::swap(x[pivot], x[j]);
+      const double xj = x[j];
+      const double* multipliers = ab + kv + 1 + j * band_rows_;
+      const Eigen::Index below = std::min(lower_band_, n - 1 - j);
+      for (Eigen::Index i = 0; i < below; ++i) x[j + 1 + i] -= multipliers[i] * xj;
+    }
+    for (Eigen::Index j = n - 1; j >= 0; --j) {
+      const double* column = ab + kv + j * band_rows_;  // column[i − j] = U(i, j)
+      x[j] /= column[0];
+      const double xj = x[j];
+      for (Eigen::Index i = j - 1; i >= std::max<Eigen::Index>(0, j - kv); --i)
+        x[i] -= column[i - j] * xj;
+    }
+  }
+
+  // Stage-major index m·d + j (unknown stage m + 1, or equation m, of dof j) in the interleaved
+  // numbering j(s − 1) + m.
+  [[nodiscard]] Eigen::Index interleaved(Eigen::Index stage_major) const {
+    return (stage_major % d_) * (s_ - 1) + stage_major / d_;
+  }
+
   void set_value(std::size_t at, double value) {
     triplets_[at] = Eigen::Triplet<double>(triplets_[at].row(), triplets_[at].col(), value);
   }
@@ -406,6 +507,9 @@ class StageMatrix {
   // Up to this size the stage matrix is factored dense even for sparse storage (a d = 20 problem
   // file stores its scalar mass sparse; dense LU is faster there and allocation-free).
   static constexpr Eigen::Index kDenseUpTo = 96;
+  // A band LU larger than this (bytes of band storage) is refused when forced and not chosen by
+  // kAuto: a periodic chain's band spans the matrix.
+  static constexpr double kMaxBandBytes = 2e9;
 
   int s_;
   Eigen::Index d_;
@@ -416,17 +520,25 @@ class StageMatrix {
   Eigen::MatrixXd D_, force_dx_, force_dv_;
   bool internal_hessians_;
   int first_equation_, first_unknown_;
-  bool sparse_ = false;
+  LinearSolver kind_ = LinearSolver::kDense;
   std::size_t factorizations_ = 0;
   std::vector<double> hessian_coeff_;  // −h b_i, internal stages
   // Dense.
   Eigen::MatrixXd constant_, jacobian_, hessian_;
   Eigen::PartialPivLU<Eigen::MatrixXd> lu_;
-  // Sparse.
+  // Band and sparse: the entries as (stage-major row, column, value); the first constant_count_
+  // are M's and R's, the rest the internal stages' Hessians (set per factorisation).
   std::vector<Eigen::Triplet<double>> triplets_;
   std::size_t constant_count_ = 0;
   std::vector<Potential::HessianEntry> pattern_;
   std::vector<double> hessian_values_;
+  // Band (LAPACK column-major band storage, kl = lower_band_, ku = upper_band_): the constant
+  // entries, the matrix factored in place, and where each triplet lands.
+  Eigen::Index lower_band_ = 0, upper_band_ = 0, band_rows_ = 0;
+  std::vector<double> band_constant_, band_lu_;
+  std::vector<lapack_int> pivots_;
+  std::vector<std::size_t> band_at_;
+  // Sparse.
   Eigen::SparseMatrix<double> sparse_matrix_;
   Eigen::SparseLU<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> sparse_lu_;
   mutable Eigen::VectorXd sparse_work_;  // lower_solve_in_place's products (n ≥ any supernode)
@@ -535,9 +647,7 @@ class LobattoStepper final : public Stepper {
   [[nodiscard]] const Eigen::VectorXd& momentum() const override { return p_; }
   [[nodiscard]] double work() const override { return work_; }
   [[nodiscard]] double supplied_work() const override { return supplied_; }
-  [[nodiscard]] LinearSolver linear_solver() const override {
-    return stage_matrix_.is_sparse() ? LinearSolver::kSparse : LinearSolver::kDense;
-  }
+  [[nodiscard]] LinearSolver linear_solver() const override { return stage_matrix_.kind(); }
   [[nodiscard]] std::size_t jacobian_factorizations() const override {
     return stage_matrix_.factorizations();
   }

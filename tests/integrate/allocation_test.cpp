@@ -232,20 +232,48 @@ TEST_F(NoAllocation, BlockHistoryRunAhead) {
   }
 }
 
-// The Lobatto schemes on a sparse system (d > 96: the stage matrix is factored by Eigen's
-// SparseLU, whose solve allocated a work vector and a permutation mask on every call before
-// StageMatrix took it step by step), on one thread and with the history's run-ahead thread. The
-// linear chain: its stage matrix is factored once, at set-up. (A refactorisation — Newton's
-// Jacobian refreshed for a nonlinear potential with internal stages, s ≥ 3 — still allocates:
-// SparseLU's factorize and setFromTriplets size their storage on every call.)
+// The Lobatto schemes on a sparse system ((s − 1)d > 96), on one thread and with the history's
+// run-ahead thread. Sparse LU (forced) on the linear chain, factored once at set-up: Eigen's
+// SparseLU solve allocated a work vector and a permutation mask on every call before StageMatrix
+// took it step by step. Band LU (kAuto's choice for the chain) on the β-FPUT chain, whose stage
+// matrix (s ≥ 3: with the internal stages' Hessians) is first factored in the first step and
+// again whenever Newton's kept matrix stops contracting: LAPACK's dgbtrf works in the storage sized
+// at set-up. Control: the same β-FPUT runs with sparse LU forced allocate (SparseLU's factorize
+// and setFromTriplets size their storage on every call; kAuto takes it only for wide bands).
 TEST_F(NoAllocation, LobattoSparseChain) {
-  for (const char* name : {"fvi-lobatto2", "fvi-lobatto3", "fvi-lobatto4"}) {
-    for (const int threads : {1, 0, 2}) {
-      IntegratorOptions options;
-      options.history = HistoryKind::kFast;
-      options.threads = threads;
-      Integrator integ(large_chain(600, 60, 1, 0.0), *parse_method(name), options);
-      EXPECT_EQ(allocations_while_stepping(integ), 0u) << name << ", threads = " << threads;
+  struct Case {
+    double quartic;
+    LinearSolver solver;
+    bool allocates;
+  };
+  for (const Case c :
+       {Case{0.0, LinearSolver::kSparse, false}, Case{1.0, LinearSolver::kAuto, false},
+        Case{1.0, LinearSolver::kSparse, true}}) {
+    for (const char* name : {"fvi-lobatto2", "fvi-lobatto3", "fvi-lobatto4"}) {
+      const bool refactors = c.quartic > 0.0 && std::string(name) != "fvi-lobatto2";
+      if (c.allocates && !refactors) continue;
+      for (const int threads : {1, 0, 2}) {
+        IntegratorOptions options;
+        options.history = HistoryKind::kFast;
+        options.threads = threads;
+        options.linear_solver = c.solver;
+        Integrator integ(large_chain(600, 60, 1, c.quartic), *parse_method(name), options);
+        ASSERT_EQ(integ.linear_solver(),
+                  c.solver == LinearSolver::kAuto ? LinearSolver::kBanded : c.solver)
+            << name;
+        const std::size_t allocations = allocations_while_stepping(integ);
+        if (c.allocates) {
+          EXPECT_GT(allocations, 0u) << name << ", threads = " << threads;
+        } else {
+          EXPECT_EQ(allocations, 0u)
+              << name << ", threads = " << threads << ", quartic = " << c.quartic;
+        }
+        // The factorisation happened inside the counted steps (the constructor factors only a
+        // linear stage system).
+        if (refactors) {
+          EXPECT_GE(integ.take_solution().jacobian_factorizations, 1u) << name;
+        }
+      }
     }
   }
 }

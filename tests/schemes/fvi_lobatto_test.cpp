@@ -577,10 +577,11 @@ double relative_difference(const RowMatrixXd& a, const RowMatrixXd& b) {
   return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
 }
 
-// Chain d = 200: (s − 1)d = 400, 600 > 96, so kAuto takes the sparse LU (M, R stored sparse, the
-// chain declares its sparse Hessian). kDense, kSparse and kAuto must give the same positions and
-// velocities to ≤ 1e-12 relative (each stops Newton at 1e-14 relative; the factorisations differ
-// only in rounding). Negative control: x0 perturbed by 1e-10 relative is seen by the same measure.
+// Chain d = 200: (s − 1)d = 400, 600 > 96, so kAuto takes the band LU (M, R stored sparse, the
+// chain declares its tridiagonal Hessian: band 3 or 5 with the stages interleaved). kDense,
+// kBanded, kSparse and kAuto must give the same positions and velocities to ≤ 1e-12 relative (each
+// stops Newton at 1e-14 relative; the factorisations differ only in rounding). Negative control:
+// x0 perturbed by 1e-10 relative is seen by the same measure.
 //
 // Eigen's dense LU runs its blocked products on OpenMP threads (all cores; IntegratorOptions::
 // threads does not limit them). On the shared 2-vCPU machine with other jobs running, that
@@ -597,28 +598,30 @@ TEST(LobattoStageSolver, SparseAndDenseAgreeOnChain) {
       for (const double beta : {0.5, 1.5}) {
         const InitialValueProblem p = chain_problem(kD, beta, fput, kSteps);
         const Solution dense = chain_run(lobatto(s), p, LinearSolver::kDense);
+        const Solution banded = chain_run(lobatto(s), p, LinearSolver::kBanded);
         const Solution sparse = chain_run(lobatto(s), p, LinearSolver::kSparse);
         const Solution automatic = chain_run(lobatto(s), p, LinearSolver::kAuto);
-        ASSERT_TRUE(dense.ok() && sparse.ok() && automatic.ok());
+        ASSERT_TRUE(dense.ok() && banded.ok() && sparse.ok() && automatic.ok());
+        const double bx = relative_difference(banded.x, dense.x);
+        const double bv = relative_difference(banded.v, dense.v);
         const double dx = relative_difference(sparse.x, dense.x);
         const double dv = relative_difference(sparse.v, dense.v);
         const double ax = relative_difference(automatic.x, dense.x);
         const double av = relative_difference(automatic.v, dense.v);
         std::printf(
-            "  %s, %s chain d = %ld, 2a = %.1f: solvers %s/%s/%s; sparse vs dense: x %.3e, v %.3e; "
-            "auto vs dense: x %.3e, v %.3e; Newton/step %.2f; %.3f s dense, %.3f s sparse\n",
+            "  %s, %s chain d = %ld, 2a = %.1f: solvers %s/%s/%s/%s; banded vs dense: x %.3e, v "
+            "%.3e; sparse vs dense: x %.3e, v %.3e; auto vs dense: x %.3e, v %.3e; Newton/step "
+            "%.2f; %.3f s dense, %.3f s banded, %.3f s sparse\n",
             scheme_name(s).c_str(), fput ? "beta-FPUT" : "linear", static_cast<long>(kD), beta,
-            dense.linear_solver.c_str(), sparse.linear_solver.c_str(),
-            automatic.linear_solver.c_str(), dx, dv, ax, av,
+            dense.linear_solver.c_str(), banded.linear_solver.c_str(), sparse.linear_solver.c_str(),
+            automatic.linear_solver.c_str(), bx, bv, dx, dv, ax, av,
             static_cast<double>(sparse.newton_iterations) / static_cast<double>(kSteps),
-            dense.wall_time_seconds, sparse.wall_time_seconds);
+            dense.wall_time_seconds, banded.wall_time_seconds, sparse.wall_time_seconds);
         EXPECT_EQ(dense.linear_solver, "dense");
+        EXPECT_EQ(banded.linear_solver, "banded");
         EXPECT_EQ(sparse.linear_solver, "sparse");
-        EXPECT_EQ(automatic.linear_solver, "sparse");
-        EXPECT_LE(dx, kTolerance);
-        EXPECT_LE(dv, kTolerance);
-        EXPECT_LE(ax, kTolerance);
-        EXPECT_LE(av, kTolerance);
+        EXPECT_EQ(automatic.linear_solver, "banded");
+        for (const double difference : {bx, bv, dx, dv, ax, av}) EXPECT_LE(difference, kTolerance);
       }
     }
   }
@@ -630,6 +633,40 @@ TEST(LobattoStageSolver, SparseAndDenseAgreeOnChain) {
   const double control = relative_difference(perturbed.x, base.x);
   std::printf("  control: x0 scaled by 1 + 1e-10: relative difference %.3e\n", control);
   EXPECT_GT(control, 10.0 * kTolerance);
+}
+
+// A periodic chain's Hessian couples x_0 and x_{d−1}: bandwidth d − 1, so kAuto takes the sparse
+// LU; a forced band LU still solves it (its band spans the matrix) and agrees, and one whose band
+// storage would exceed 2 GB is refused by name.
+TEST(LobattoStageSolver, PeriodicChainTakesSparseLuAndRefusesAHugeBand) {
+  auto periodic = [](Eigen::Index d, std::size_t steps) {
+    InitialValueProblem p = chain_problem(d, 1.5, true, steps);
+    ChainOptions chain;
+    chain.dimension = d;
+    chain.quartic = 1.0;
+    chain.boundary = ChainBoundary::kPeriodic;
+    p.model.potential = make_chain_potential(chain);
+    return p;
+  };
+  const InitialValueProblem p = periodic(100, 10);
+  const Solution automatic = chain_run(lobatto(3), p, LinearSolver::kAuto);
+  const Solution banded = chain_run(lobatto(3), p, LinearSolver::kBanded);
+  EXPECT_EQ(automatic.linear_solver, "sparse");
+  EXPECT_EQ(banded.linear_solver, "banded");
+  EXPECT_LE(relative_difference(banded.x, automatic.x), 1e-12);
+  IntegratorOptions options;
+  options.linear_solver = LinearSolver::kBanded;
+  try {
+    Integrator integ(periodic(6000, 10), Method(lobatto(3)), options);
+    ADD_FAILURE() << "a 6000-mass periodic chain's band LU was accepted";
+  } catch (const ValidationError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("method.linear_solver = \"banded\""), std::string::npos) << message;
+    EXPECT_NE(message.find(" GB ("), std::string::npos) << message;
+  }
+  options.linear_solver = LinearSolver::kAuto;
+  EXPECT_EQ(Integrator(periodic(6000, 10), Method(lobatto(3)), options).linear_solver(),
+            LinearSolver::kSparse);
 }
 
 // =============================================================================================
