@@ -176,9 +176,36 @@ struct SymmetricFactor::Banded {
   mutable std::vector<double> lanes;
 };
 
+// The sparse LDLᵀ of P J Pᵀ, P the approximate-minimum-degree ordering of the pattern computed
+// once. Eigen's SimplicialLDLT<…, AMDOrdering>::factorize(J) copies J, permuted, into a new matrix
+// on every call (and constructs one even without an ordering), so the step loop allocated once per
+// factorisation; here the permuted upper triangle is stored once, each factorisation scatters the
+// values into it (`at`: pattern entry → its slot) and runs Eigen's numeric factorisation on it
+// directly (factorize_preordered, protected: hence the subclass), and the solve permutes in and
+// out through `scratch`. What still allocates: factorize_preordered's three work vectors of d
+// entries come from the stack up to EIGEN_STACK_ALLOCATION_LIMIT (128 KB: d ≤ 16384), from the
+// heap beyond.
 struct SymmetricFactor::Sparse {
-  Eigen::SparseMatrix<double> matrix;  // upper triangle, values in pattern order
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Upper, Eigen::AMDOrdering<int>> ldlt;
+  using Matrix = Eigen::SparseMatrix<double>;  // column-major, int indices: Eigen's CholMatrixType
+  class PreorderedLdlt
+      : public Eigen::SimplicialLDLT<Matrix, Eigen::Upper, Eigen::NaturalOrdering<int>> {
+   public:
+    // The symbolic analysis, and D sized (the first numeric factorisation would size it).
+    void analyze(const Matrix& upper) {
+      this->analyzePattern(upper);
+      this->m_diag.resize(upper.rows());
+    }
+    // The numeric factorisation of a matrix already in the analysed order and pattern.
+    void factorize_ordered(const Matrix& upper) {
+      this->template factorize_preordered<true>(upper);
+    }
+    // D (vectorD() returns a copy).
+    [[nodiscard]] const Eigen::VectorXd& diagonal() const { return this->m_diag; }
+  };
+  Matrix permuted;              // upper triangle of P J Pᵀ
+  std::vector<std::size_t> at;  // pattern entry e → its value's index in `permuted`
+  Eigen::VectorXi position;     // row i of J is row position[i] of P J Pᵀ
+  PreorderedLdlt ldlt;
   mutable Eigen::VectorXd scratch;
 };
 
@@ -613,10 +640,35 @@ SymmetricFactor::SymmetricFactor(std::shared_ptr<const SymmetricPattern> pattern
     std::vector<Eigen::Triplet<double>> triplets;
     triplets.reserve(p.size());
     for (const auto& e : p.entries()) triplets.emplace_back(e.row, e.col, 1.0);
-    s.matrix.resize(d, d);
-    s.matrix.setFromTriplets(triplets.begin(), triplets.end());
-    s.matrix.makeCompressed();
-    s.ldlt.analyzePattern(s.matrix);
+    Sparse::Matrix upper(d, d);
+    upper.setFromTriplets(triplets.begin(), triplets.end());
+    // The ordering as Eigen's SimplicialLDLT computes it (SimplicialCholeskyBase::ordering): AMD on
+    // the full symmetric pattern, which yields P⁻¹.
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> inverse;
+    {
+      Sparse::Matrix full;
+      full = upper.selfadjointView<Eigen::Upper>();
+      Eigen::AMDOrdering<int> ordering;
+      ordering(full, inverse);
+    }
+    const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> ordering =
+        inverse.inverse();
+    s.position = ordering.indices();
+    triplets.clear();
+    for (const auto& e : p.entries()) {
+      const int r = s.position(e.row), c = s.position(e.col);
+      triplets.emplace_back(std::min(r, c), std::max(r, c), 1.0);
+    }
+    s.permuted.resize(d, d);
+    s.permuted.setFromTriplets(triplets.begin(), triplets.end());
+    s.permuted.makeCompressed();
+    s.at.reserve(p.size());
+    for (const auto& e : p.entries()) {
+      const int r = s.position(e.row), c = s.position(e.col);
+      s.at.push_back(static_cast<std::size_t>(&s.permuted.coeffRef(std::min(r, c), std::max(r, c)) -
+                                              s.permuted.valuePtr()));
+    }
+    s.ldlt.analyze(s.permuted);
     s.scratch.resize(d);
   }
 }
@@ -647,8 +699,9 @@ bool SymmetricFactor::factor() noexcept {
                                b.pivots.data()) == 0;
   }
   Sparse& s = *sparse_;
-  std::copy(values_.begin(), values_.end(), s.matrix.valuePtr());
-  s.ldlt.factorize(s.matrix);
+  double* permuted = s.permuted.valuePtr();
+  for (std::size_t e = 0; e < values_.size(); ++e) permuted[s.at[e]] = values_[e];
+  s.ldlt.factorize_ordered(s.permuted);
   return s.ldlt.info() == Eigen::Success;
 }
 
@@ -714,9 +767,13 @@ void SymmetricFactor::solve_in_place(Eigen::Ref<Eigen::VectorXd> rhs) const noex
     }
     return;
   }
+  // SimplicialLDLT::solve's steps (L, D, Lᵀ), between the permutation in and out.
   const Sparse& s = *sparse_;
-  s.scratch = rhs;
-  rhs = s.ldlt.solve(s.scratch);
+  for (Eigen::Index i = 0; i < rhs.size(); ++i) s.scratch(s.position(i)) = rhs(i);
+  s.ldlt.matrixL().solveInPlace(s.scratch);
+  s.scratch.array() /= s.ldlt.diagonal().array();
+  s.ldlt.matrixU().solveInPlace(s.scratch);
+  for (Eigen::Index i = 0; i < rhs.size(); ++i) rhs(i) = s.scratch(s.position(i));
 }
 
 std::vector<std::pair<std::size_t, double>> scatter_upper(const SymmetricPattern& pattern,

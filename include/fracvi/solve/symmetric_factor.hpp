@@ -14,10 +14,11 @@
 //            (tridiagonal_ldlt: dpttrf's numbers, chunked; fallback dgttrf/dgttrs), b = 0 divides
 //            by the diagonal. O(d·b²) per factorisation, O(d·b) per solve: O(d) for chains.
 //            Allocation-free: LAPACK works in preallocated storage.
-//   kSparse  Eigen::SimplicialLDLT with an approximate-minimum-degree ordering, the symbolic
-//            analysis done once. For patterns whose bandwidth is large but fill is small (2-D
-//            lattices, periodic chains). Eigen's numeric factorisation allocates temporaries
-//            internally, so this path is not allocation-free.
+//   kSparse  Eigen::SimplicialLDLT with an approximate-minimum-degree ordering, the ordering,
+//            the permuted matrix and the symbolic analysis done once. For patterns whose
+//            bandwidth is large but fill is small (2-D lattices, periodic chains).
+//            Allocation-free up to d = 16384; beyond, Eigen's numeric factorisation takes its
+//            work vector of d doubles from the heap (once per factorisation).
 //
 // Values are passed in pattern order: the caller computes once where each entry of A and of the
 // Hessian lands (index_of) and scatters into values() every iteration — O(nnz), no search.
@@ -103,9 +104,10 @@ class SymmetricFactor {
   /// The values of J in pattern order; fill them, then factor().
   [[nodiscard]] std::span<double> values() { return {values_.data(), values_.size()}; }
   /// Factors J from values(). Returns false if the matrix is numerically singular (or, for the
-  /// sparse backend, the LDLᵀ breaks down). No allocation for kBanded.
+  /// sparse backend, the LDLᵀ breaks down). No allocation for kBanded, nor for kSparse with
+  /// d ≤ 16384.
   bool factor() noexcept;
-  /// rhs ← J⁻¹ rhs. No allocation for kBanded.
+  /// rhs ← J⁻¹ rhs. No allocation.
   void solve_in_place(Eigen::Ref<Eigen::VectorXd> rhs) const noexcept;
 
  private:
