@@ -288,11 +288,7 @@ TEST_F(NoAllocation, LobattoSparseChain) {
 TEST_F(NoAllocation, PeriodicChainSparseLdlt) {
   auto periodic = [](Eigen::Index d) {
     InitialValueProblem p = large_chain(d, 30, 1);
-    ChainOptions chain;
-    chain.dimension = d;
-    chain.quartic = 1.0;
-    chain.boundary = ChainBoundary::kPeriodic;
-    p.model.potential = make_chain_potential(chain);
+    p.model.potential = test::periodic_fput_chain(d);
     return p;
   };
   for (const char* name : {"fvi-gl", "fvi-bdf2", "fvi-midpoint"}) {

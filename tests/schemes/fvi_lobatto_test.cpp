@@ -641,11 +641,7 @@ TEST(LobattoStageSolver, SparseAndDenseAgreeOnChain) {
 TEST(LobattoStageSolver, PeriodicChainTakesSparseLuAndRefusesAHugeBand) {
   auto periodic = [](Eigen::Index d, std::size_t steps) {
     InitialValueProblem p = chain_problem(d, 1.5, true, steps);
-    ChainOptions chain;
-    chain.dimension = d;
-    chain.quartic = 1.0;
-    chain.boundary = ChainBoundary::kPeriodic;
-    p.model.potential = make_chain_potential(chain);
+    p.model.potential = test::periodic_fput_chain(d);
     return p;
   };
   const InitialValueProblem p = periodic(100, 10);

@@ -10,6 +10,7 @@
 #include <memory>
 
 #include "fracvi/model/autodiff_potential.hpp"
+#include "fracvi/model/chain_potential.hpp"
 #include "fracvi/model/mechanical_model.hpp"
 #include "fracvi/model/potential.hpp"
 #include "linear_oscillator_reference.hpp"
@@ -279,6 +280,17 @@ inline InitialValueProblem forced_duffing(double alpha, std::size_t steps) {
   p.t_end = 200.0;
   p.steps = steps;
   return p;
+}
+
+/// The periodic β-FPUT chain U = Σ_i ½ r_i² + ¼ r_i⁴ over the d bonds of a ring (r_i = x_{i+1} −
+/// x_i, x_d ≡ x_0): its Hessian couples x_0 and x_{d−1}, bandwidth d − 1 (the sparse
+/// factorisations' case).
+inline std::shared_ptr<const Potential> periodic_fput_chain(Eigen::Index d) {
+  ChainOptions chain;
+  chain.dimension = d;
+  chain.quartic = 1.0;
+  chain.boundary = ChainBoundary::kPeriodic;
+  return make_chain_potential(chain);
 }
 
 }  // namespace fracvi::test
