@@ -406,8 +406,8 @@ class StageMatrix {
       for (lapack_int j = 0; j < n; ++j) farthest = std::max(farthest, pivots_[j] - 1 - j);
       factor_upper_band_ = upper_band_ + farthest;
       // The solve streams L's multipliers forwards and U's columns backwards: each packed
-      // contiguously, without the band storage's unused rows (at d = 10^4, s = 3 the solves read
-      // 1.1 MB instead of twice 1.6 MB; two threads ran the step 15 % slower than with SparseLU).
+      // contiguously, without the band storage's unused rows (at d = 10^4, s = 3 a solve reads
+      // 1.1 MB instead of the 1.6 MB band storage twice).
       const Eigen::Index kv = lower_band_ + upper_band_, ub = factor_upper_band_;
       for (Eigen::Index j = 0; j < n; ++j) {
         const double* column = band_lu_.data() + j * band_rows_;
@@ -490,7 +490,8 @@ class StageMatrix {
   }
 
   // x ← J⁻¹x from dgbtrf's factor: what dgbtrs does for one right-hand side (the row interchanges
-  // and L's multipliers column by column, then U, of bandwidth kl + ku, backwards), in plain loops.
+  // and L's multipliers column by column, then U backwards), in plain loops over the packed factor
+  // (U's band factor_upper_band_ ≤ kl + ku).
   // dgbtrs takes each column through a level-2 BLAS call (dger for L, dtbsv for U): with the
   // reference BLAS, those calls on columns of 3–6 entries were 30 % of an fvi-lobatto3 step of
   // the β-FPUT chain at d = 1000 (perf), and the step ran 1.2–1.6× slower than with sparse LU.

@@ -182,9 +182,9 @@ struct SymmetricFactor::Banded {
 // factorisation; here the permuted upper triangle is stored once, each factorisation scatters the
 // values into it (`at`: pattern entry → its slot) and runs Eigen's numeric factorisation on it
 // directly (factorize_preordered, protected: hence the subclass), and the solve permutes in and
-// out through `scratch`. What still allocates: factorize_preordered's three work vectors of d
-// entries come from the stack up to EIGEN_STACK_ALLOCATION_LIMIT (128 KB: d ≤ 16384), from the
-// heap beyond.
+// out through `scratch`. What still allocates: factorize_preordered's work vectors (d doubles, two
+// of d ints) come from the stack up to EIGEN_STACK_ALLOCATION_LIMIT (128 KB each), from the heap
+// beyond: one allocation per factorisation for 16384 < d ≤ 32768, three beyond.
 struct SymmetricFactor::Sparse {
   using Matrix = Eigen::SparseMatrix<double>;  // column-major, int indices: Eigen's CholMatrixType
   class PreorderedLdlt

@@ -18,7 +18,8 @@
 //            the permuted matrix and the symbolic analysis done once. For patterns whose
 //            bandwidth is large but fill is small (2-D lattices, periodic chains).
 //            Allocation-free up to d = 16384; beyond, Eigen's numeric factorisation takes its
-//            work vector of d doubles from the heap (once per factorisation).
+//            work vectors from the heap (one allocation per factorisation up to d = 32768, three
+//            beyond).
 //
 // Values are passed in pattern order: the caller computes once where each entry of A and of the
 // Hessian lands (index_of) and scatters into values() every iteration — O(nnz), no search.
