@@ -169,9 +169,10 @@ class PowerMoments {
 // ---------------------------------------------------------------------------------------------
 // The stage system's Newton matrix, (s − 1)d × (s − 1)d, unknown stage m (1 … s − 1) at columns
 // (m − 1)d …, equation row i (0 … s − 2) at rows i·d …: dense LU; or, when M, R and ∇²U are stored
-// sparse, band LU (LAPACK dgbtrf/dgbtrs) on the stages interleaved per degree of freedom, or sparse
-// LU (Eigen's SparseLU, COLAMD ordering). The matrix is not symmetric (W_0 and the row/column
-// selection of K_D are not), so the symmetric factorisations of the midpoint schemes do not apply.
+// sparse, band LU (LAPACK dgbtrf; dgbtrs's solve in plain loops) on the stages interleaved per
+// degree of freedom, or sparse LU (Eigen's SparseLU, COLAMD ordering). The matrix is not symmetric
+// (W_0 and the row/column selection of K_D are not), so the symmetric factorisations of the
+// midpoint schemes do not apply.
 //
 // Band: every block (i, m) has the pattern of M, R and ∇²U, of bandwidth b in the degrees of
 // freedom; numbering unknown (dof j, stage m) as j(s − 1) + m − 1 (and the equations alike) puts
