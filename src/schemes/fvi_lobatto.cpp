@@ -45,8 +45,6 @@
 #include <string>
 #include <vector>
 
-#include <lapacke.h>
-
 #include "forcing_moments.hpp"
 #include "fractional_series.hpp"
 #include "fracvi/core/error.hpp"
@@ -55,6 +53,7 @@
 #include "fracvi/schemes/history_budget.hpp"
 #include "fracvi/schemes/stability.hpp"
 #include "fracvi/schemes/stepper.hpp"
+#include "fracvi/solve/band_lu.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
 #include "mass_solver.hpp"
 #include "mirror_run.hpp"
@@ -169,7 +168,7 @@ class PowerMoments {
 // ---------------------------------------------------------------------------------------------
 // The stage system's Newton matrix, (s − 1)d × (s − 1)d, unknown stage m (1 … s − 1) at columns
 // (m − 1)d …, equation row i (0 … s − 2) at rows i·d …: dense LU; or, when M, R and ∇²U are stored
-// sparse, band LU (LAPACK dgbtrf; dgbtrs's solve in plain loops) on the stages interleaved per
+// sparse, band LU (internal::BandLu, solve/band_lu.hpp) on the stages interleaved per
 // degree of freedom, or sparse LU (Eigen's SparseLU, COLAMD ordering). The matrix is not symmetric
 // (W_0 and the row/column selection of K_D are not), so the symmetric factorisations of the
 // midpoint schemes do not apply.
@@ -295,14 +294,14 @@ class StageMatrix {
     }
     // The band of the interleaved numbering (the header above); kAuto keeps sparse LU for wide
     // bands.
+    Eigen::Index lower_band = 0, upper_band = 0;
     for (const Eigen::Triplet<double>& t : triplets_) {
       const Eigen::Index row = interleaved(t.row()), col = interleaved(t.col());
-      lower_band_ = std::max(lower_band_, row - col);
-      upper_band_ = std::max(upper_band_, col - row);
+      lower_band = std::max(lower_band, row - col);
+      upper_band = std::max(upper_band, col - row);
     }
-    const Eigen::Index dof_bandwidth = (std::max(lower_band_, upper_band_) + 1) / (s_ - 1) - 1;
-    band_rows_ = 2 * lower_band_ + upper_band_ + 1;  // + kl rows for the pivoting's fill
-    const double band_bytes = 8.0 * static_cast<double>(band_rows_) * static_cast<double>(n);
+    const Eigen::Index dof_bandwidth = (std::max(lower_band, upper_band) + 1) / (s_ - 1) - 1;
+    const double band_bytes = internal::BandLu::storage_bytes(n, lower_band, upper_band);
     if (requested == LinearSolver::kBanded ||
         (requested == LinearSolver::kAuto && dof_bandwidth <= kMaxAutoBandwidth &&
          band_bytes <= kMaxBandBytes)) {
@@ -311,22 +310,16 @@ class StageMatrix {
         throw ValidationError(
             "the band LU of this Lobatto scheme's stage system would need " +
             format_number(band_bytes / 1e9) + " GB (" + std::to_string(n) + " unknowns, " +
-            std::to_string(band_rows_) +
+            std::to_string(2 * lower_band + upper_band + 1) +
             " band rows): method.linear_solver = \"banded\" needs a narrow band (M, R and the "
             "Hessian of bandwidth <= " +
             std::to_string(kMaxAutoBandwidth) + " in the degrees of freedom); use \"sparse\"");
       }
-      band_constant_.assign(static_cast<std::size_t>(band_rows_ * n), 0.0);
-      band_lu_.assign(band_constant_.size(), 0.0);
-      pivots_.assign(static_cast<std::size_t>(n), 0);
-      packed_lower_.assign(static_cast<std::size_t>(lower_band_ * n), 0.0);
-      packed_upper_.assign(static_cast<std::size_t>((lower_band_ + upper_band_ + 1) * n), 0.0);
+      band_lu_ = internal::BandLu(n, lower_band, upper_band);
+      band_constant_.assign(band_lu_.band().size(), 0.0);
       band_at_.reserve(triplets_.size());
-      for (const Eigen::Triplet<double>& t : triplets_) {
-        const Eigen::Index row = interleaved(t.row()), col = interleaved(t.col());
-        band_at_.push_back(
-            static_cast<std::size_t>(lower_band_ + upper_band_ + row - col + col * band_rows_));
-      }
+      for (const Eigen::Triplet<double>& t : triplets_)
+        band_at_.push_back(band_lu_.offset(interleaved(t.row()), interleaved(t.col())));
       for (std::size_t k = 0; k < constant_count_; ++k)
         band_constant_[band_at_[k]] += triplets_[k].value();
       return;
@@ -391,32 +384,11 @@ class StageMatrix {
       }
     }
     if (kind_ == LinearSolver::kBanded) {
-      std::copy(band_constant_.begin(), band_constant_.end(), band_lu_.begin());
+      std::vector<double>& band = band_lu_.band();
+      std::copy(band_constant_.begin(), band_constant_.end(), band.begin());
       for (std::size_t k = constant_count_; k < triplets_.size(); ++k)
-        band_lu_[band_at_[k]] += triplets_[k].value();
-      const auto n = static_cast<lapack_int>(pivots_.size());
-      if (LAPACKE_dgbtrf_work(LAPACK_COL_MAJOR, n, n, static_cast<lapack_int>(lower_band_),
-                              static_cast<lapack_int>(upper_band_), band_lu_.data(),
-                              static_cast<lapack_int>(band_rows_), pivots_.data()) != 0) {
-        return false;
-      }
-      // U's band: ku, widened by the farthest row interchange (row j taking row p brings that
-      // row's reach p + ku, and eliminations only mix rows within it). Entries beyond it are the
-      // exact zeros dgbtrf wrote; the solve skips them (no interchange: ku, not kl + ku).
-      lapack_int farthest = 0;
-      for (lapack_int j = 0; j < n; ++j) farthest = std::max(farthest, pivots_[j] - 1 - j);
-      factor_upper_band_ = upper_band_ + farthest;
-      // The solve streams L's multipliers forwards and U's columns backwards: each packed
-      // contiguously, without the band storage's unused rows (at d = 10^4, s = 3 a solve reads
-      // 1.1 MB instead of the 1.6 MB band storage twice).
-      const Eigen::Index kv = lower_band_ + upper_band_, ub = factor_upper_band_;
-      for (Eigen::Index j = 0; j < n; ++j) {
-        const double* column = band_lu_.data() + j * band_rows_;
-        std::copy_n(column + kv + 1, lower_band_, packed_lower_.data() + j * lower_band_);
-        for (Eigen::Index r = 0; r <= ub; ++r)  // U(j, j), U(j − 1, j), …, U(j − ub, j)
-          packed_upper_[static_cast<std::size_t>(j * (ub + 1) + r)] = column[kv - r];
-      }
-      return true;
+        band[band_at_[k]] += triplets_[k].value();
+      return band_lu_.factor();
     }
     if (internal_hessians_) {
       sparse_matrix_.setFromTriplets(triplets_.begin(), triplets_.end());
@@ -439,7 +411,7 @@ class StageMatrix {
       const Eigen::Index stages = s_ - 1;
       Eigen::Map<Eigen::MatrixXd>(scratch.data(), stages, d_) =
           Eigen::Map<const Eigen::MatrixXd>(rhs.data(), d_, stages).transpose();
-      band_solve_in_place(scratch.data());
+      band_lu_.solve_in_place(scratch.data());
       Eigen::Map<Eigen::MatrixXd>(rhs.data(), d_, stages) =
           Eigen::Map<const Eigen::MatrixXd>(scratch.data(), stages, d_).transpose();
       return;
@@ -490,32 +462,6 @@ class StageMatrix {
     }
   }
 
-  // x ← J⁻¹x from dgbtrf's factor: what dgbtrs does for one right-hand side (the row interchanges
-  // and L's multipliers column by column, then U backwards), in plain loops over the packed factor
-  // (U's band factor_upper_band_ ≤ kl + ku).
-  // dgbtrs takes each column through a level-2 BLAS call (dger for L, dtbsv for U): with the
-  // reference BLAS, those calls on columns of 3–6 entries were 30 % of an fvi-lobatto3 step of
-  // the β-FPUT chain at d = 1000 (perf), and the step ran 1.2–1.6× slower than with sparse LU.
-  void band_solve_in_place(double* x) const {
-    const Eigen::Index n = static_cast<Eigen::Index>(pivots_.size());
-    for (Eigen::Index j = 0; j + 1 < n; ++j) {
-      const Eigen::Index pivot = pivots_[static_cast<std::size_t>(j)] - 1;
-      if (pivot != j) std::swap(x[pivot], x[j]);
-      const double xj = x[j];
-      const double* multipliers = packed_lower_.data() + j * lower_band_;
-      const Eigen::Index below = std::min(lower_band_, n - 1 - j);
-      for (Eigen::Index i = 0; i < below; ++i) x[j + 1 + i] -= multipliers[i] * xj;
-    }
-    const Eigen::Index ub = factor_upper_band_;
-    for (Eigen::Index j = n - 1; j >= 0; --j) {
-      const double* column = packed_upper_.data() + j * (ub + 1);  // column[r] = U(j − r, j)
-      x[j] /= column[0];
-      const double xj = x[j];
-      const Eigen::Index above = std::min(ub, j);
-      for (Eigen::Index r = 1; r <= above; ++r) x[j - r] -= column[r] * xj;
-    }
-  }
-
   // Stage-major index m·d + j (unknown stage m + 1, or equation m, of dof j) in the interleaved
   // numbering j(s − 1) + m.
   [[nodiscard]] Eigen::Index interleaved(Eigen::Index stage_major) const {
@@ -554,15 +500,10 @@ class StageMatrix {
   std::size_t constant_count_ = 0;
   std::vector<Potential::HessianEntry> pattern_;
   std::vector<double> hessian_values_;
-  // Band (LAPACK column-major band storage, kl = lower_band_, ku = upper_band_): the constant
-  // entries, the matrix factored in place, and where each triplet lands.
-  Eigen::Index lower_band_ = 0, upper_band_ = 0, band_rows_ = 0;
-  Eigen::Index factor_upper_band_ = 0;  // U's bandwidth in the current factor (≤ kl + ku)
-  std::vector<double> packed_lower_;    // L's multipliers, kl per column
-  std::vector<double> packed_upper_;    // U's columns from the diagonal up, ub + 1 per column
-  std::vector<double> band_constant_, band_lu_;
-  std::vector<lapack_int> pivots_;
+  // Band: the constant entries in band storage, where each triplet lands, and the factor.
+  std::vector<double> band_constant_;
   std::vector<std::size_t> band_at_;
+  internal::BandLu band_lu_;
   // Sparse.
   Eigen::SparseMatrix<double> sparse_matrix_;
   Eigen::SparseLU<Eigen::SparseMatrix<double>, Eigen::COLAMDOrdering<int>> sparse_lu_;

@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "fracvi/internal/vectorize.hpp"
+#include "fracvi/solve/band_lu.hpp"
 
 namespace fracvi {
 
@@ -126,8 +127,8 @@ LinearSolver choose_factorization(const SymmetricPattern& pattern) {
 }
 
 // LAPACK band storage (column-major). Cholesky, UPLO = 'U': ldab = kd + 1, A(i, j) at
-// (kd + i − j) + j·ldab for j − kd ≤ i ≤ j. LU (dgbtrf, kl = ku = kd): ldab = 3kd + 1 (kd extra
-// rows for the fill of row interchanges), A(i, j) at (2kd + i − j) + j·ldab for |i − j| ≤ kd.
+// (kd + i − j) + j·ldab for j − kd ≤ i ≤ j. The LU fallback (kl = ku = kd) is BandLu
+// (solve/band_lu.hpp: dgbtrf, and dgbtrs's solve in plain loops).
 // Bandwidths 0 and 1 have their own routines: a diagonal is divided by, and a tridiagonal matrix
 // is factored LDLᵀ by tridiagonal_ldlt (dpttrf's numbers, chunked; positive definite) or by
 // LAPACK's dgttrf/dgttrs (LU with pivoting), which are plain loops — the general band routines call
@@ -152,9 +153,10 @@ constexpr std::size_t kChunkedMinimum = 32 * kChunks;
 constexpr double kChunkedMaxCoupling = 0.5;
 
 struct SymmetricFactor::Banded {
-  lapack_int n = 0, kd = 0, ldab_chol = 0, ldab_lu = 0;
-  std::vector<double> chol, lu;
-  std::vector<lapack_int> pivots;
+  lapack_int n = 0, kd = 0, ldab_chol = 0;
+  std::vector<double> chol;
+  BandLu lu;                                                   // kd ≥ 2, not positive definite
+  std::vector<lapack_int> pivots;                              // kd = 1: dgttrf's
   std::vector<std::size_t> chol_at, lu_upper_at, lu_lower_at;  // per pattern entry
   bool use_lu = false;
   // kd ≤ 1: diagonal and first off-diagonal (copies for the LU fallback: dl, d, du, du2).
@@ -601,10 +603,7 @@ SymmetricFactor::SymmetricFactor(std::shared_ptr<const SymmetricPattern> pattern
     b.n = static_cast<lapack_int>(d);
     b.kd = static_cast<lapack_int>(p.bandwidth());
     b.ldab_chol = b.kd + 1;
-    b.ldab_lu = 3 * b.kd + 1;
     b.chol.assign(static_cast<std::size_t>(b.ldab_chol) * static_cast<std::size_t>(d), 0.0);
-    b.lu.assign(static_cast<std::size_t>(b.ldab_lu) * static_cast<std::size_t>(d), 0.0);
-    b.pivots.assign(static_cast<std::size_t>(d), 0);
     const auto kd = static_cast<std::size_t>(b.kd);
     const auto n = static_cast<std::size_t>(d);
     if (b.kd <= 1) {
@@ -624,14 +623,15 @@ SymmetricFactor::SymmetricFactor(std::shared_ptr<const SymmetricPattern> pattern
         b.tri_at.push_back(e.row == e.col ? i : n + i);
       }
       b.full_tridiagonal = b.kd == 1 && p.size() == 2 * n - 1;
+      b.pivots.assign(n, 0);
       b.chol.clear();
-      b.lu.clear();
     } else {
+      b.lu = BandLu(d, b.kd, b.kd);
       for (const auto& e : p.entries()) {
         const auto i = static_cast<std::size_t>(e.row), j = static_cast<std::size_t>(e.col);
         b.chol_at.push_back(kd + i - j + j * static_cast<std::size_t>(b.ldab_chol));
-        b.lu_upper_at.push_back(2 * kd + i - j + j * static_cast<std::size_t>(b.ldab_lu));
-        b.lu_lower_at.push_back(2 * kd + j - i + i * static_cast<std::size_t>(b.ldab_lu));
+        b.lu_upper_at.push_back(b.lu.offset(e.row, e.col));
+        b.lu_lower_at.push_back(b.lu.offset(e.col, e.row));
       }
     }
   } else {
@@ -689,14 +689,14 @@ bool SymmetricFactor::factor() noexcept {
     }
     // Not positive definite: band LU with partial pivoting.
     b.use_lu = true;
-    std::fill(b.lu.begin(), b.lu.end(), 0.0);
+    std::vector<double>& band = b.lu.band();
+    std::fill(band.begin(), band.end(), 0.0);
     const auto& entries = pattern_->entries();
     for (std::size_t e = 0; e < values_.size(); ++e) {
-      b.lu[b.lu_upper_at[e]] = values_[e];
-      if (entries[e].row != entries[e].col) b.lu[b.lu_lower_at[e]] = values_[e];
+      band[b.lu_upper_at[e]] = values_[e];
+      if (entries[e].row != entries[e].col) band[b.lu_lower_at[e]] = values_[e];
     }
-    return LAPACKE_dgbtrf_work(LAPACK_COL_MAJOR, b.n, b.n, b.kd, b.kd, b.lu.data(), b.ldab_lu,
-                               b.pivots.data()) == 0;
+    return b.lu.factor();
   }
   Sparse& s = *sparse_;
   double* permuted = s.permuted.valuePtr();
@@ -759,8 +759,7 @@ void SymmetricFactor::solve_in_place(Eigen::Ref<Eigen::VectorXd> rhs) const noex
   if (banded_) {
     const Banded& b = *banded_;
     if (b.use_lu) {
-      LAPACKE_dgbtrs_work(LAPACK_COL_MAJOR, 'N', b.n, b.kd, b.kd, 1, b.lu.data(), b.ldab_lu,
-                          b.pivots.data(), rhs.data(), b.n);
+      b.lu.solve_in_place(rhs.data());
     } else {
       LAPACKE_dpbtrs_work(LAPACK_COL_MAJOR, 'U', b.n, b.kd, 1, b.chol.data(), b.ldab_chol,
                           rhs.data(), b.n);

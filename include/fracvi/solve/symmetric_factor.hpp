@@ -9,7 +9,7 @@
 //   kDense   d × d LU with partial pivoting (Eigen). O(d³) per factorisation; small or dense
 //            problems, and every problem whose M or Hessian is only available dense.
 //   kBanded  LAPACK band Cholesky dpbtrf/dpbtrs on the bandwidth b of the pattern, falling back to
-//            band LU with partial pivoting (dgbtrf/dgbtrs) when J is not positive definite (a
+//            band LU with partial pivoting (BandLu: dgbtrf) when J is not positive definite (a
 //            locally concave U with a large step); b = 1 uses a tridiagonal LDLᵀ
 //            (tridiagonal_ldlt: dpttrf's numbers, chunked; fallback dgttrf/dgttrs), b = 0 divides
 //            by the diagonal. O(d·b²) per factorisation, O(d·b) per solve: O(d) for chains.
