@@ -579,10 +579,8 @@ struct Integrator::Impl {
     const Eigen::VectorXd &v = stepper->velocity(), &p = stepper->momentum();
     // v·p as the step's momentum pass summed it, when it did (Stepper::step_sums: the same bits).
     const Stepper::StepSums& sums = stepper->step_sums();
-    kinetic_k =
-        0.5 * (sums.step == i && sums.has_velocity_momentum ? sums.velocity_momentum
-               : d >= internal::kVectorPassesFrom ? internal::dot_pass(v.data(), p.data(), d)
-                                                  : v.dot(p));
+    kinetic_k = 0.5 * (sums.step == i && sums.has_velocity_momentum ? sums.velocity_momentum
+                                                                    : internal::step_dot(v, p));
     potential_k = problem.model.potential
                       ? problem.model.potential->value(stepper->position(), time(i))
                       : 0.0;

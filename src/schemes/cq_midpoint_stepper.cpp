@@ -256,13 +256,8 @@ Status CqMidpointStepper::advance() {
       fw_next = momentum.fw;
     } else {
       if (damped_ && !fused_passes_) mass_solver_.inverse_damping(sum_, force_next_, w_);
-      if (vector_dots) {
-        fv_next = dot_pass(force_next_.data(), v_next_.data(), d_);
-        fw_next = dot_pass(force_next_.data(), minv_force.data(), d_);
-      } else {
-        fv_next = force_next_.dot(v_next_);
-        fw_next = force_next_.dot(minv_force);
-      }
+      fv_next = step_dot(force_next_, v_next_);
+      fw_next = step_dot(force_next_, minv_force);
     }
     work_ += 0.5 * h_ * (fv_ + fv_next) + 0.125 * h_ * h_ * (fw_next - fw_);
     // The extra start impulse (w − ½) h F_0 of the singular RL force: the kinetic energy it
