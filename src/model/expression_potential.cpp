@@ -1,10 +1,14 @@
 #include "fracvi/model/expression_potential.hpp"
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
+#include <limits>
 #include <memory>
 #include <numeric>
 #include <stdexcept>
 #include <unordered_map>
+#include <utility>
 
 namespace fracvi {
 
@@ -41,7 +45,58 @@ ExpressionPotential::ExpressionPotential(Eigen::Index dimension, const std::stri
       derivatives_(Expression::parse(potential, all_names(dimension)), position_indices(dimension)),
       time_dependent_(derivatives_.expression().depends_on(static_cast<std::size_t>(dimension))),
       kinks_(derivatives_.expression().has_kinks_in(derivatives_.wrt())),
-      id_(next_id()) {}
+      id_(next_id()) {
+  if (derivatives_.hessian_is_constant() && !time_dependent_ && !kinks_) set_up_affine_gradient();
+}
+
+void ExpressionPotential::set_up_affine_gradient() {
+  const Eigen::Index d = dimension_;
+  const auto n = static_cast<std::size_t>(d);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(d);
+  Eigen::VectorXd b(d);
+  gradient(zero, 0.0, b);  // the tape (affine_gradient_ is still false)
+  const std::vector<HessianEntry> pattern = hessian_pattern();
+  std::vector<double> values(pattern.size());
+  hessian_values(zero, 0.0, values);
+  if (!b.allFinite()) return;
+  // K's rows, both triangles, columns ascending within a row.
+  std::vector<std::vector<std::pair<Eigen::Index, double>>> rows(n);
+  for (std::size_t e = 0; e < pattern.size(); ++e) {
+    if (!std::isfinite(values[e])) return;
+    rows[static_cast<std::size_t>(pattern[e].row)].emplace_back(pattern[e].col, values[e]);
+    if (pattern[e].row != pattern[e].col)
+      rows[static_cast<std::size_t>(pattern[e].col)].emplace_back(pattern[e].row, values[e]);
+  }
+  row_start_.assign(1, 0);
+  for (auto& row : rows) {
+    std::sort(row.begin(), row.end());
+    for (const auto& [col, value] : row) {
+      stiffness_col_.push_back(col);
+      stiffness_value_.push_back(value);
+    }
+    row_start_.push_back(static_cast<Eigen::Index>(stiffness_col_.size()));
+  }
+  gradient_at_zero_.assign(b.data(), b.data() + d);
+  // The check at x_i = 1 + i/d: b + Kx against the tape, to round-off of the terms' sizes. A
+  // formula that passed the symbolic test but is not affine in its gradient keeps the tape.
+  Eigen::VectorXd x(d), tape(d), affine(d);
+  for (Eigen::Index i = 0; i < d; ++i) x(i) = 1.0 + static_cast<double>(i) / static_cast<double>(d);
+  gradient(x, 0.0, tape);
+  affine_gradient_ = true;
+  gradient(x, 0.0, affine);
+  for (Eigen::Index i = 0; i < d; ++i) {
+    double size = std::abs(b(i));
+    for (Eigen::Index k = row_start_[static_cast<std::size_t>(i)];
+         k < row_start_[static_cast<std::size_t>(i) + 1]; ++k) {
+      size += std::abs(stiffness_value_[static_cast<std::size_t>(k)]) *
+              std::abs(x(stiffness_col_[static_cast<std::size_t>(k)]));
+    }
+    if (!(std::abs(tape(i) - affine(i)) <= 64.0 * std::numeric_limits<double>::epsilon() * size)) {
+      affine_gradient_ = false;
+      return;
+    }
+  }
+}
 
 ExpressionPotential::Scratch& ExpressionPotential::scratch(
     const Eigen::Ref<const Eigen::VectorXd>& x, double t) const {
@@ -77,6 +132,18 @@ double ExpressionPotential::value(const Eigen::Ref<const Eigen::VectorXd>& x, do
 
 void ExpressionPotential::gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
                                    Eigen::Ref<Eigen::VectorXd> g) const {
+  if (affine_gradient_) {  // b_i + Σ_k K_ik x_k, columns ascending
+    for (Eigen::Index i = 0; i < dimension_; ++i) {
+      double sum = gradient_at_zero_[static_cast<std::size_t>(i)];
+      for (Eigen::Index k = row_start_[static_cast<std::size_t>(i)];
+           k < row_start_[static_cast<std::size_t>(i) + 1]; ++k) {
+        sum += stiffness_value_[static_cast<std::size_t>(k)] *
+               x[stiffness_col_[static_cast<std::size_t>(k)]];
+      }
+      g[i] = sum;
+    }
+    return;
+  }
   Scratch& s = scratch(x, t);
   derivatives_.gradient(s.workspace.values(),
                         std::span<double>(g.data(), static_cast<std::size_t>(g.size())),

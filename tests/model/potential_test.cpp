@@ -7,6 +7,7 @@
 #include <random>
 
 #include "fracvi/model/autodiff_potential.hpp"
+#include "fracvi/model/expression_potential.hpp"
 #include "fracvi/model/potential.hpp"
 
 namespace fracvi {
@@ -29,6 +30,52 @@ TEST(QuadraticPotential, ValueGradientHessian) {
   EXPECT_TRUE(U.has_constant_hessian());
   EXPECT_FALSE(U.is_time_dependent());
   EXPECT_EQ(U.dimension(), 2);
+}
+
+// A quadratic formula's gradient is formed as b + Kx (ExpressionPotential::has_affine_gradient):
+// against QuadraticPotential with the same K and b, and against the exact gradient in long double
+// for springs displaced far from the origin, where b + Kx and the formula's differences round
+// differently (both to round-off of the terms' sizes).
+TEST(ExpressionPotential, QuadraticFormulaHasAnAffineGradient) {
+  const ExpressionPotential U(2, "1.5*x1^2 - x1*x2 + x2^2 - 0.5*x1 + 0.25*x2 + 7");
+  EXPECT_TRUE(U.has_affine_gradient());
+  const Eigen::MatrixXd K{{3.0, -1.0}, {-1.0, 2.0}};
+  const QuadraticPotential reference(K, Eigen::VectorXd{{0.5, -0.25}});
+  std::mt19937 rng(3u);
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    const Eigen::VectorXd x{{u(rng), u(rng)}};
+    Eigen::VectorXd g(2), expected(2);
+    U.gradient(x, 0.0, g);
+    reference.gradient(x, 0.0, expected);
+    EXPECT_LE((g - expected).cwiseAbs().maxCoeff(),
+              8 * kEps * (K.cwiseAbs() * x.cwiseAbs()).maxCoeff() + 8 * kEps);
+    EXPECT_NEAR(U.value(x, 0.0), reference.value(x, 0.0) + 7.0, 64 * kEps);
+  }
+  // Springs (x2 − x1)² / 2 + x1²/2 at x ≈ 10^3 with differences ≈ 10^−3.
+  const ExpressionPotential springs(2, "0.5*(x2 - x1)^2 + 0.5*x1^2");
+  EXPECT_TRUE(springs.has_affine_gradient());
+  const Eigen::VectorXd x{{1000.0 + 1e-3, 1000.0 + 3e-3}};
+  Eigen::VectorXd g(2);
+  springs.gradient(x, 0.0, g);
+  const long double x1 = x(0), x2 = x(1);
+  const long double exact[2] = {-(x2 - x1) + x1, x2 - x1};
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_LE(std::abs(static_cast<double>(g(i) - exact[i])), 4 * kEps * 2.0 * 1000.0) << i;
+  }
+}
+
+// What keeps the tape: t in the formula, a non-quadratic U, a kink.
+TEST(ExpressionPotential, NonQuadraticFormulasKeepTheTape) {
+  const ExpressionPotential with_t(1, "x1^2 + t*x1");
+  EXPECT_FALSE(with_t.has_affine_gradient());
+  Eigen::VectorXd g(1);
+  with_t.gradient(Eigen::VectorXd{{0.5}}, 3.0, g);
+  EXPECT_DOUBLE_EQ(g(0), 1.0 + 3.0);
+  EXPECT_FALSE(ExpressionPotential(1, "x1^4").has_affine_gradient());
+  EXPECT_FALSE(ExpressionPotential(1, "abs(x1) + x1^2").has_affine_gradient());
+  EXPECT_FALSE(ExpressionPotential(2, "x1^2*x2").has_affine_gradient());
+  EXPECT_TRUE(ExpressionPotential(3, "x1 + 2*x3").has_affine_gradient());  // K = 0
 }
 
 TEST(QuadraticPotential, RejectsBadInput) {
