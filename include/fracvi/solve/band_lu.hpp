@@ -30,9 +30,6 @@ class BandLu {
   /// Bytes of LAPACK band storage for these sizes (the packed factor adds at most as much again).
   [[nodiscard]] static double storage_bytes(Eigen::Index n, Eigen::Index kl, Eigen::Index ku);
 
-  [[nodiscard]] Eigen::Index size() const { return n_; }
-  [[nodiscard]] Eigen::Index lower_bandwidth() const { return kl_; }
-  [[nodiscard]] Eigen::Index upper_bandwidth() const { return ku_; }
   /// U's bandwidth in the current factor: ku + the farthest row interchange (≤ kl + ku).
   [[nodiscard]] Eigen::Index factor_upper_bandwidth() const { return factor_ku_; }
 
