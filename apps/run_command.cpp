@@ -233,6 +233,20 @@ Command add_run_command(CLI::App& parent) {
             solution.history_exponentials, solution.history_window, solution.history_tolerance,
             solution.history_tolerance_auto ? "auto" : "given",
             1e-6 * static_cast<double>(solution.history_bytes));
+        const HistoryThreads& use = solution.history_threads;
+        if (use.team > 1) {
+          const double share = use.pushes > 0 ? 100.0 * static_cast<double>(use.team_pushes) /
+                                                    static_cast<double>(use.pushes)
+                                              : 0.0;
+          if (use.measured) {
+            std::printf(
+                "  history threads   %d measured against 1: on %d for %.0f %% of the pushes (%zu "
+                "of %zu trials won, %zu lost again to a slow spell)\n",
+                use.team, use.team, share, use.team_won, use.decisions, use.team_dropped);
+          } else {
+            std::printf("  history threads   %d as set (%.0f %% of the pushes)\n", use.team, share);
+          }
+        }
       } else if (solution.history != "none") {
         std::printf("  damping memory    %s, %.3g MB\n", solution.history.c_str(),
                     1e-6 * static_cast<double>(solution.history_bytes));

@@ -1011,6 +1011,7 @@ Solution Integrator::Impl::result(Solution s, std::size_t rows) const {
   s.status = status;
   s.steps_done = k;
   s.jacobian_factorizations = stepper->jacobian_factorizations();
+  s.history_threads = stepper->history().threads;
   s.message = status == Status::kSuccess || status == Status::kRunning
                   ? std::string()
                   : std::string(message.data());

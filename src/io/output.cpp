@@ -346,6 +346,14 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
       {"history_tolerance_mode",
        std::isfinite(s.history_tolerance) ? (s.history_tolerance_auto ? "auto" : "user") : ""},
       {"history_limited", s.history_limited},
+      {"history_threads",
+       {{"team", s.history_threads.team},
+        {"measured", s.history_threads.measured},
+        {"pushes", s.history_threads.pushes},
+        {"team_pushes", s.history_threads.team_pushes},
+        {"decisions", s.history_threads.decisions},
+        {"team_won", s.history_threads.team_won},
+        {"team_dropped", s.history_threads.team_dropped}}},
       {"save_every", s.save_every},
       {"output_times", s.output_t.size()},
       {"events", events_json(s)},
@@ -385,6 +393,11 @@ struct SummaryReader {
       fail(key, "= " + v.dump() + " is not a count (an integer >= 0)");
     }
     return v.get<std::size_t>();
+  }
+  bool flag(const nlohmann::json& object, const std::string& key) const {
+    const auto& v = at(object, key);
+    if (!v.is_boolean()) fail(key, "= " + v.dump() + " is not true/false");
+    return v.get<bool>();
   }
   std::string text(const nlohmann::json& object, const std::string& key) const {
     const auto& v = at(object, key);
@@ -443,13 +456,20 @@ void read_summary(const nlohmann::json& summary, Solution& s, const std::string&
   if (summary.contains("history_tolerance")) {
     s.history_tolerance = r.number(summary, "history_tolerance");
     s.history_tolerance_auto = r.text(summary, "history_tolerance_mode") == "auto";
-    const auto& limited = r.at(summary, "history_limited");
-    if (!limited.is_boolean())
-      r.fail("history_limited", "= " + limited.dump() + " is not true/false");
-    s.history_limited = limited.get<bool>();
+    s.history_limited = r.flag(summary, "history_limited");
   } else {  // written before the accuracy budget (issue 17): ε was not recorded
     s.history_tolerance = std::numeric_limits<double>::quiet_NaN();
     s.history_tolerance_auto = s.history_limited = false;
+  }
+  s.history_threads = HistoryThreads{};
+  if (summary.contains("history_threads")) {  // absent in summaries written before it (issue 17)
+    const auto& t = r.at(summary, "history_threads");
+    const std::size_t team = r.count(t, "team");
+    if (team < 1 || team > 4096)
+      r.fail("team", "= " + std::to_string(team) + " is not in [1, 4096]");
+    s.history_threads = {static_cast<int>(team),    r.flag(t, "measured"),   r.count(t, "pushes"),
+                         r.count(t, "team_pushes"), r.count(t, "decisions"), r.count(t, "team_won"),
+                         r.count(t, "team_dropped")};
   }
   s.save_every = r.count(summary, "save_every");
   if (s.save_every < 1) r.fail("save_every", "= 0 is not a storage stride (at least 1)");

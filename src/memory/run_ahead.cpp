@@ -6,6 +6,7 @@
 
 #include "fracvi/internal/cpu_placement.hpp"
 #include "fracvi/internal/parallel.hpp"
+#include "fracvi/memory/history.hpp"
 
 namespace fracvi::internal {
 
@@ -109,6 +110,7 @@ RunAhead::~RunAhead() = default;
 void RunAhead::configure(int threads, Eigen::Index rows, Eigen::Index work) {
   finish();
   rows_ = rows;
+  pushes_ = team_pushes_ = 0;
   int team = team_size(threads, work, thresholds_.parallel_work);
   if (team == 1 && team_size(threads, work, thresholds_.run_ahead_work) == 2) team = 2;
   team_.configure(threads, team);
@@ -139,6 +141,8 @@ RunAhead::Turn RunAhead::begin(std::size_t size, std::size_t window, std::size_t
                     std::chrono::duration<double>(arrival - finished).count());
   }
   timed_ahead_ = false;
+  ++pushes_;
+  if (threads > 1) ++team_pushes_;
   return {thread_ ? 1 : threads, ahead_,
           thread_ && threads > 1 && size + 1 >= window && size + 1 < capacity};
 }
@@ -151,6 +155,12 @@ void RunAhead::end(const Turn& turn, Eigen::Index next_slot, Eigen::Index next_f
   thread_->post(next_slot, next_first, share, timed_ahead_);
   job_.run_ahead(share, rows_, next_slot, next_first);
   ahead_ = true;
+}
+
+HistoryThreads thread_use(const RunAhead& run_ahead) {
+  const TeamChooser& chooser = run_ahead.chooser();
+  return {chooser.team(),      chooser.measuring(), run_ahead.pushes(),    run_ahead.team_pushes(),
+          chooser.decisions(), chooser.team_won(),  chooser.team_dropped()};
 }
 
 void RunAhead::finish() const {

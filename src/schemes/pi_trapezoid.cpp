@@ -179,7 +179,9 @@ class PiTrapezoidStepper final : public Stepper {
             static_cast<std::size_t>(values_d_.size() + values_g_.size() + values_e_.size()) *
                     sizeof(double) +
                 position_sum_.memory_bytes() + velocity_sum_.memory_bytes(),
-            0, 0};
+            0,
+            0,
+            {}};
   }
 
  private:

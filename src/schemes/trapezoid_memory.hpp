@@ -90,12 +90,12 @@ class NodeAveragedTrapezoid {
            (average_ ? average_->memory_bytes() : 0);
   }
   /// Both histories as one (History::report): their exponentials added (the recursions per
-  /// degree of freedom of a step), the longer window.
+  /// degree of freedom of a step), the longer window, their thread use added.
   [[nodiscard]] HistoryReport report() const {
     const HistoryReport a = difference_ ? difference_->report() : HistoryReport{};
     const HistoryReport b = average_ ? average_->report() : HistoryReport{};
     return {kind(), a.bytes + b.bytes, a.exponentials + b.exponentials,
-            std::max(a.window, b.window)};
+            std::max(a.window, b.window), a.threads + b.threads};
   }
 
  private:

@@ -359,6 +359,26 @@ class Run(unittest.TestCase):
             with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
                 self.assertEqual(json.load(f)["history"], expected, setting)
 
+    def test_summary_says_how_the_history_used_the_cores(self):
+        # Issue 17: summary.json's history_threads, and the terminal's line for it. A chain of
+        # 2000 masses has enough history work per step for the run-ahead thread (a team of 2).
+        chain = os.path.join(FRACVI_EXAMPLES, "fractional_chain.toml")
+        for threads, team in ((2, 2), (1, 1)):
+            out = os.path.join(self.dir, "threads%d" % threads)
+            r = run("run", chain, "--out", out, "--no-plot", "--set", "time.steps=200", "--set",
+                    "time.end=2", "--set", "model.dim=2000", "--set", 'method.history="fast"',
+                    "--set", "method.threads=%d" % threads, "--set",
+                    'method.error_estimate="none"', "--set", 'method.mirror="off"')
+            self.assertEqual(r.returncode, 0, r.stderr)
+            with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+                use = json.load(f)["history_threads"]
+            self.assertEqual(use["team"], team)
+            self.assertEqual(use["pushes"], 201)  # x̃_0 at the set-up, then one a step
+            self.assertEqual(use["team_pushes"], 201 if team == 2 else 0)
+            self.assertFalse(use["measured"])
+            self.assertEqual(("history threads   2 as set (100 % of the pushes)" in r.stdout),
+                             team == 2, r.stdout)
+
     def test_problem_file_every_and_default_directory(self):
         path = self.write(PROBLEM + "[output]\nevery = 100\n")
         r = subprocess.run([FRACVI, "run", path, "--no-plot"], capture_output=True, text=True,
@@ -848,9 +868,11 @@ class Robustness(unittest.TestCase):
 
 
 def without_wall_times(value):
-    """summary.json without the wall-clock fields (the only ones a resumed run may change)."""
+    """summary.json without the wall-clock fields and the history's thread use (the only ones a
+    resumed run may change: its pushes are counted from the resume)."""
     if isinstance(value, dict):
-        return {k: without_wall_times(v) for k, v in value.items() if "wall" not in k}
+        return {k: without_wall_times(v) for k, v in value.items()
+                if "wall" not in k and k != "history_threads"}
     if isinstance(value, list):
         return [without_wall_times(v) for v in value]
     return value

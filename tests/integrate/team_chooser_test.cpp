@@ -57,16 +57,28 @@ TEST(TeamChooser, PicksTheFasterCountAndMeasuresAgainAfterTheHold) {
   int team_calls = 0;
   EXPECT_EQ(trial(team, 1e-3, 0.6e-3, &team_calls), 2);  // the team is faster: held on 2 threads
   EXPECT_EQ(team_calls, kTrial);
-  // The hold lasts max(0.5 s, 32 × the trials' timed 2 × 14 calls, 22.4 ms) = 0.72 s of calls.
-  const double hold = 32.0 * kTimed * (1e-3 + 0.6e-3);
-  const int calls = static_cast<int>(hold / 0.6e-3);
-  for (int i = 0; i < calls - 1; ++i) {
-    ASSERT_EQ(team.next(), 2) << "hold call " << i;
-    ASSERT_FALSE(team.in_trial()) << "hold call " << i;
-    team.record(0.6e-3);
-  }
-  team.record(2 * 0.6e-3);  // the hold is over: trials again, and now the machine is busy
+  // The first hold lasts max(0.5 s, 8 × the trials' timed 2 × 14 calls, 22.4 ms) = 0.5 s.
+  EXPECT_GT(TeamChooser::kHoldSeconds, TeamChooser::kFirstHoldTrials * kTimed * 1.6e-3);
+  const auto hold_calls = [&](double hold, double seconds, int count) {
+    const int calls = static_cast<int>(hold / seconds);
+    for (int i = 0; i < calls - 1; ++i) {
+      ASSERT_EQ(team.next(), count) << "hold call " << i;
+      ASSERT_FALSE(team.in_trial()) << "hold call " << i;
+      team.record(seconds);
+    }
+    team.record(2 * seconds);  // the hold is over
+    EXPECT_TRUE(team.in_trial());
+  };
+  hold_calls(TeamChooser::kHoldSeconds, 0.6e-3, 2);
+  // Trials again: the team is still faster, and the second hold lasts max(0.5 s, 32 × 22.4 ms)
+  // = 0.72 s.
+  EXPECT_EQ(trial(team, 1e-3, 0.6e-3), 2);
+  hold_calls(TeamChooser::kHoldTrials * kTimed * 1.6e-3, 0.6e-3, 2);
+  // Trials again, and now the machine is busy.
   EXPECT_EQ(trial(team, 1e-3, 5e-3), 1);
+  EXPECT_EQ(team.decisions(), 3u);
+  EXPECT_EQ(team.team_won(), 2u);
+  EXPECT_EQ(team.team_dropped(), 0u);
 }
 
 TEST(TeamChooser, WarmUpCallsAreNotTimedAndRestartMeasuresAgain) {
@@ -144,17 +156,39 @@ TEST(TeamChooser, ATeamSlowerThanOneThreadLosesItsTrialAndItsHold) {
   EXPECT_EQ(hold_after_burst(70e-3), 2);
   {
     // Held calls steadily slower than the team's trial but faster than one thread: kept for the
-    // whole hold (0.72 s: 757 calls of 0.95 ms).
-    EXPECT_EQ(held_team(750, 0.95e-3).next(), 2);
-    // Held calls slower than one thread: one thread from the kTrial-th on, for the rest of the
-    // hold, and then trials again.
+    // whole (first) hold (0.5 s: 526 calls of 0.95 ms).
+    TeamChooser kept = held_team(520, 0.95e-3);
+    EXPECT_EQ(kept.next(), 2);
+    EXPECT_EQ(kept.team_dropped(), 0u);
+    // Held calls slower than one thread: one thread from the kTrial-th on, for as long again as
+    // the team was held but at least 4 × the trials' 22.4 ms, and then trials again (not for the
+    // rest of the 0.5 s hold).
     TeamChooser slow = held_team(kTrial, 1.2e-3);
     EXPECT_EQ(slow.next(), 1);
     EXPECT_FALSE(slow.in_trial());
+    EXPECT_EQ(slow.team_dropped(), 1u);
     int calls = 0;
     for (; !slow.in_trial() && calls < 1'000'000; ++calls) slow.record(1e-3);
-    // The hold of 0.72 s (the test above) less the 19.2 ms held on the team.
-    EXPECT_NEAR(calls, (32.0 * kTimed * 1.6e-3 - kTrial * 1.2e-3) / 1e-3, 1.0);
+    EXPECT_NEAR(calls, TeamChooser::kRetryTrials * kTimed * 1.6e-3 / 1e-3, 1.0);
+    // A team held longer before a slow spell: 200 calls of 0.6 ms (120 ms), then calls of 4 ms
+    // until the mean passes one thread's 1 ms (27 of them): one thread for as long again
+    // (228 ms), more than 4 × 22.4 ms and less than the 0.5 s hold's remaining 272 ms.
+    TeamChooser spell = held_team(200, 0.6e-3);
+    double held = 200 * 0.6e-3;
+    int slow_calls = 0;
+    for (; spell.next() == 2 && slow_calls < 1000; ++slow_calls) {
+      spell.record(4e-3);
+      held += 4e-3;
+    }
+    EXPECT_EQ(slow_calls, 27) << "the mean passes 1 ms at the 27th call of 4 ms";
+    calls = 0;
+    for (; !spell.in_trial() && calls < 1'000'000; ++calls) spell.record(1e-3);
+    EXPECT_NEAR(calls, held / 1e-3, 1.0);
+    // Then the team is tried again, and wins again once the spell has passed.
+    EXPECT_EQ(trial(spell, 1e-3, 0.6e-3), 2);
+    EXPECT_EQ(spell.decisions(), 2u);
+    EXPECT_EQ(spell.team_won(), 2u);
+    EXPECT_EQ(spell.team_dropped(), 1u);
   }
 }
 
@@ -249,6 +283,22 @@ TEST(TeamChooser, FastHistorySumsDoNotDependOnTheChoice) {
       out.col(k) = s;
     }
     sums.push_back(out);
+    // What the history reports of its thread use (summary.json's history_threads).
+    const HistoryThreads use = history.report().threads;
+    EXPECT_EQ(use.pushes, static_cast<std::size_t>(kPushes)) << threads;
+    EXPECT_EQ(use.measured, threads == 0) << threads;
+    if (threads == 1) {
+      EXPECT_EQ(use.team, 1);
+      EXPECT_EQ(use.team_pushes, 0u);
+    } else if (threads == 2) {
+      EXPECT_EQ(use.team, 2);
+      EXPECT_EQ(use.team_pushes, static_cast<std::size_t>(kPushes));
+    } else if (use.team > 1) {
+      // The first trial's pushes (the window's 16 and 16 more) ran on one thread.
+      EXPECT_LE(use.team_pushes, static_cast<std::size_t>(kPushes - 2 * kTrial));
+      EXPECT_LE(use.team_won, use.decisions);
+      EXPECT_LE(use.decisions, 1u);
+    }
   }
   EXPECT_TRUE(bitwise_equal(sums[0], sums[1])) << "1 thread against a team of 2";
   EXPECT_TRUE(bitwise_equal(sums[0], sums[2])) << "1 thread against the measured choice";

@@ -42,6 +42,13 @@ void expect_same_fields(const Solution& a, const Solution& b) {
   EXPECT_EQ(a.save_every, b.save_every);
   EXPECT_EQ(a.linear_solver, b.linear_solver);
   EXPECT_EQ(a.history, b.history);
+  EXPECT_EQ(a.history_threads.team, b.history_threads.team);
+  EXPECT_EQ(a.history_threads.measured, b.history_threads.measured);
+  EXPECT_EQ(a.history_threads.pushes, b.history_threads.pushes);
+  EXPECT_EQ(a.history_threads.team_pushes, b.history_threads.team_pushes);
+  EXPECT_EQ(a.history_threads.decisions, b.history_threads.decisions);
+  EXPECT_EQ(a.history_threads.team_won, b.history_threads.team_won);
+  EXPECT_EQ(a.history_threads.team_dropped, b.history_threads.team_dropped);
   EXPECT_EQ(a.method, b.method);
   EXPECT_EQ(a.declared_order, b.declared_order);
   EXPECT_TRUE(same(a.mirror_error, b.mirror_error));
@@ -66,11 +73,16 @@ TEST(Output, ReadSummaryIsTheInverseOfMakeSummary) {
   const ProblemSpec spec = parse_problem(default_problem_toml(), "<test>");
   for (const char* extra :
        {"time.steps=300", "method.newton_max_iterations=1", "method.tolerance=1e-5"}) {
-    const Solution s = run_of(extra);
+    Solution s = run_of(extra);
     // Through the text of summary.json, as fracvi.load reads it.
     const auto text = make_summary(spec, s).dump(2);
     Solution back;
     read_summary(nlohmann::json::parse(text), back, "summary.json");
+    expect_same_fields(back, s);
+    // The thread use of a large run's fast history (this small run's is one thread throughout).
+    EXPECT_EQ(s.history_threads.team, 1);
+    s.history_threads = {2, true, 600, 569, 3, 2, 1};
+    read_summary(make_summary(spec, s), back, "summary.json");
     expect_same_fields(back, s);
     EXPECT_EQ(stored_steps(back.steps_done, back.save_every), s.step) << extra;
     EXPECT_EQ(s.tolerance_runs.empty(), std::string(extra) != "method.tolerance=1e-5");
@@ -101,6 +113,21 @@ TEST(Output, ReadSummaryNamesTheField) {
       },
       OutputError);
   j["steps"] = 3;
+  j["history_threads"]["team"] = 0;
+  EXPECT_THROW(
+      {
+        try {
+          read_summary(j, s, "dir/summary.json");
+        } catch (const OutputError& e) {
+          EXPECT_STREQ(e.what(), "dir/summary.json: \"team\" = 0 is not in [1, 4096]");
+          throw;
+        }
+      },
+      OutputError);
+  j["history_threads"]["team"] = 1;
+  j["history_threads"]["measured"] = 1;
+  EXPECT_THROW(read_summary(j, s, "s"), OutputError) << "measured is true/false";
+  j["history_threads"]["measured"] = false;
   j["error_estimate_details"].erase("note");
   EXPECT_THROW(read_summary(j, s, "s"), OutputError);
   EXPECT_EQ(parse_status("unstable"), Status::kUnstable);

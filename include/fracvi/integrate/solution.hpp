@@ -31,6 +31,7 @@
 
 #include "fracvi/core/matrix.hpp"
 #include "fracvi/core/status.hpp"
+#include "fracvi/memory/history.hpp"
 
 namespace fracvi {
 
@@ -120,6 +121,9 @@ struct Solution {
   double history_tolerance = std::numeric_limits<double>::quiet_NaN();
   bool history_tolerance_auto = false;
   bool history_limited = false;
+  /// How the fast history's pushes used the cores (HistoryReport::threads): the team, the pushes
+  /// on it, the measured choice's decisions. A team of 1 for the other memories.
+  HistoryThreads history_threads;
 
   /// max_k ‖y_k − x_{N−k}‖_∞ from the independent backward run of the mirror equation
   /// (`DiscEqs`, second line); NaN if not computed (disabled, or the run did not succeed).

@@ -64,6 +64,11 @@ class RunAhead {
   }
   /// The run-ahead thread's share of the next push.
   [[nodiscard]] Eigen::Index rows() const { return balance_.rows(); }
+  /// Since configure(): the thread choice (its team and decisions), the pushes, and how many of
+  /// them ran on more than one thread (the run-ahead thread or a split).
+  [[nodiscard]] const TeamChooser& chooser() const { return team_; }
+  [[nodiscard]] std::size_t pushes() const { return pushes_; }
+  [[nodiscard]] std::size_t team_pushes() const { return team_pushes_; }
 
   /// One push: `size` values pushed before it, window n0, `capacity` pushes in all.
   struct Turn {
@@ -104,6 +109,7 @@ class RunAhead {
   RunAheadBalance balance_;      // the run-ahead thread's rows and the caller's
   bool timed_ahead_ = false;     // the job in flight records its times for balance_
   bool ahead_ = false;
+  std::size_t pushes_ = 0, team_pushes_ = 0;
   std::unique_ptr<AheadThread> thread_;  // last: destroyed (joined) first
 };
 

@@ -67,7 +67,7 @@ class BlockHistory {
   /// "direct", "fast" or "local": what method.history = "auto" chose (summary.json's history).
   [[nodiscard]] virtual std::string_view kind() const = 0;
   /// kind(), memory_bytes() and, for the fast history, K and n0 (history.hpp).
-  [[nodiscard]] virtual HistoryReport report() const { return {kind(), memory_bytes(), 0, 0}; }
+  [[nodiscard]] virtual HistoryReport report() const { return {kind(), memory_bytes(), 0, 0, {}}; }
   /// Threads for the work over degrees of freedom (0 = measured against one). Only the fast
   /// history uses them (a run-ahead thread from kRunAheadWork multiply–adds per step, split rows
   /// from kParallelWork); the direct one ignores it.
@@ -154,7 +154,7 @@ class FastBlockHistory final : public BlockHistory, private internal::RunAheadJo
   /// K, the number of tail terms (recursions per degree of freedom).
   [[nodiscard]] std::size_t terms() const { return static_cast<std::size_t>(decay_.size()); }
   [[nodiscard]] HistoryReport report() const override {
-    return {kind(), memory_bytes(), terms(), window()};
+    return {kind(), memory_bytes(), terms(), window(), internal::thread_use(run_ahead_)};
   }
 
  private:

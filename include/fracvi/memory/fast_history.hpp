@@ -110,7 +110,7 @@ class FastHistory final : public History, private internal::RunAheadJob {
   /// K, the number of exponentials (recursions per degree of freedom).
   [[nodiscard]] std::size_t terms() const { return fit_->terms(); }
   [[nodiscard]] HistoryReport report() const override {
-    return {kind(), memory_bytes(), terms(), window()};
+    return {kind(), memory_bytes(), terms(), window(), internal::thread_use(run_ahead_)};
   }
 
  private:

@@ -21,6 +21,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <cstddef>
 #include <memory>
 #include <optional>
@@ -36,11 +37,42 @@ namespace fracvi {
 /// "fast", "local", "fft" or "none": what method.history = "auto" chose), its bytes, and for a
 /// fast history the number K of exponentials (recursions per degree of freedom) and the window
 /// n0 of exactly weighted recent lags (0 for the others).
+///
+/// `threads`: how a fast history's pushes used the cores (internal::RunAhead, TeamChooser), for
+/// runs whose speed on two cores needs explaining: the most threads a push could use (1: one
+/// thread throughout, e.g. below kRunAheadWork), whether the count was measured (threads = 0)
+/// or set, the pushes and how many ran on the team, the trial pairs decided, how many the team
+/// won, and how many of those holds it lost to a slow spell (guard 2). A memory of two histories
+/// (fvi-midpoint's) adds them up.
+struct HistoryThreads {
+  int team = 1;
+  bool measured = false;
+  std::size_t pushes = 0;
+  std::size_t team_pushes = 0;
+  std::size_t decisions = 0;
+  std::size_t team_won = 0;
+  std::size_t team_dropped = 0;
+
+  /// Two histories' use as one: the larger team, the counts added.
+  [[nodiscard]] HistoryThreads operator+(const HistoryThreads& o) const {
+    return {std::max(team, o.team),       measured || o.measured,  pushes + o.pushes,
+            team_pushes + o.team_pushes,  decisions + o.decisions, team_won + o.team_won,
+            team_dropped + o.team_dropped};
+  }
+};
+
+namespace internal {
+class RunAhead;
+/// A fast history's HistoryThreads from its RunAhead (src/memory/run_ahead.cpp).
+HistoryThreads thread_use(const RunAhead& run_ahead);
+}  // namespace internal
+
 struct HistoryReport {
   std::string_view kind = "none";
   std::size_t bytes = 0;
   std::size_t exponentials = 0;
   std::size_t window = 0;
+  HistoryThreads threads;
 };
 
 class History {
@@ -73,7 +105,7 @@ class History {
   /// "direct", "fast" or "local": what method.history = "auto" chose (summary.json's history).
   [[nodiscard]] virtual std::string_view kind() const = 0;
   /// kind(), memory_bytes() and, for the fast history, K and n0.
-  [[nodiscard]] virtual HistoryReport report() const { return {kind(), memory_bytes(), 0, 0}; }
+  [[nodiscard]] virtual HistoryReport report() const { return {kind(), memory_bytes(), 0, 0, {}}; }
   /// Threads for the work over degrees of freedom (0 = OpenMP's default). Only the fast history
   /// has enough work per step to use them; the others ignore it.
   virtual void set_threads(int threads) { static_cast<void>(threads); }
