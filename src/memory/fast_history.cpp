@@ -423,6 +423,7 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
     // of a d = 1 push's instructions went there, callgrind); never run ahead (no second thread,
     // and visit_state refuses a small system's checkpoint that says so).
     push_rows_across_terms(block(0, d, recurse ? terms : 0, slot, first, entering));
+    run_ahead_.count_single_push();
     ++size_;
     return;
   }

@@ -69,6 +69,8 @@ class RunAhead {
   [[nodiscard]] const TeamChooser& chooser() const { return team_; }
   [[nodiscard]] std::size_t pushes() const { return pushes_; }
   [[nodiscard]] std::size_t team_pushes() const { return team_pushes_; }
+  /// A push the history made on its own thread without begin() (a system too small for a team).
+  void count_single_push() { ++pushes_; }
 
   /// One push: `size` values pushed before it, window n0, `capacity` pushes in all.
   struct Turn {
