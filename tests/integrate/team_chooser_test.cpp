@@ -516,14 +516,6 @@ TEST(TeamChooser, FastBlockHistorySumsDoNotDependOnTheChoice) {
   }
   EXPECT_TRUE(bitwise_equal(sums[0], sums[1])) << "1 thread against a team of 2";
   EXPECT_TRUE(bitwise_equal(sums[0], sums[2])) << "1 thread against the measured choice";
-  // A system too small for a team (d < 4 pushes without the choice) counts its pushes too.
-  FastHistory small(1.5, 1, 1 << 12);
-  small.set_threads(0);
-  for (int k = 0; k < kPushes; ++k) small.push(xs.col(k).head(1));
-  const HistoryThreads use = small.report().threads;
-  EXPECT_EQ(use.pushes, static_cast<std::size_t>(kPushes));
-  EXPECT_EQ(use.team, 1);
-  EXPECT_EQ(use.team_pushes, 0u);
 }
 
 // FastBlockHistory runs ahead like FastHistory (internal/run_ahead.hpp): for s = 2, 3, 4 stages,
