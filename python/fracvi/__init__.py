@@ -556,6 +556,9 @@ class Problem:
     max_steps = property(lambda self: self._spec.max_steps,
                          doc="method.max_steps: the ceiling of that doubling")
     threads = property(lambda self: self._spec.threads, doc="method.threads (0: measured, one thread or all cores)")
+    flush_subnormals = property(
+        lambda self: self._spec.flush_subnormals,
+        doc="method.flush_subnormals: numbers below 2.2e-308 flushed to zero while stepping")
     every = property(lambda self: self._spec.every,
                      doc="output.every: the solution stores every n-th state and the last; "
                          "\"auto\" (the default): every state up to 10^5 steps, beyond the "
@@ -863,7 +866,7 @@ def integrate(problem, *, newton_absolute_tolerance=0.0, mirror=None, diagnostic
     schemes take out of x at t0), error_estimate ("richardson": the Solution's
     error_estimate from companion runs with N/2 and N/4 steps, about 0.75 of the cost more; or
     "none"), tolerance (> 0: N doubled from steps until error_estimate <= tolerance, up to
-    max_steps; summary()["tolerance_runs"] lists the runs), threads (0: measured, one thread or all cores), every (store every n-th state; "auto": every state up to 10^5 steps, then thinned by a power of two)) may be
+    max_steps; summary()["tolerance_runs"] lists the runs), threads (0: measured, one thread or all cores), flush_subnormals (True, the default: numbers below 2.2e-308 flushed to zero while stepping, x86-64), every (store every n-th state; "auto": every state up to 10^5 steps, then thinned by a power of two)) may be
     given as a keyword: it overrides the problem's value, is validated by the same reader as a
     problem file, and is recorded in summary(). An unknown keyword is a TypeError naming the valid
     ones. mirror is method.mirror (the backward run of the mirror equation and mirror_error, a
@@ -1490,9 +1493,10 @@ _FIELD_SECTIONS = {row["key"]: row["section"] for row in _fracvi.problem_schema(
 _RUN_OPTIONS = ("newton_absolute_tolerance", "diagnostics", "history", "start",
                 "raise_on_failure", "t_eval", "events", "dense")
 # solve_bvp()'s keywords: every key of [method] and [output] but those of the initial value
-# drivers (the error estimate and its tolerance; solve_bvp's own `tolerance` is its residual's).
+# drivers (the error estimate and its tolerance; solve_bvp's own `tolerance` is its residual's;
+# flush_subnormals is the step loop's floating-point setting, not the BVP's Newton solve's).
 _IVP_ONLY = ("error_estimate", "tolerance", "max_steps", "checkpoint_every", "mirror",
-             "format")  # a BVP writes trajectory.csv of x, y and the residuals
+             "flush_subnormals", "format")  # a BVP writes trajectory.csv of x, y and the residuals
 _BVP_FIELD_SECTIONS = {row["key"]: row["section"] for row in _fracvi.problem_schema()
                        if row["section"] in ("method", "output") and row["key"] not in _IVP_ONLY}
 _BVP_OPTIONS = ("sum", "solver", "tolerance", "raise_on_failure")

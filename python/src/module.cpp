@@ -1093,6 +1093,7 @@ void bind(py::module_& m) {
       .def_readonly("tolerance", &ProblemSpec::tolerance)
       .def_readonly("max_steps", &ProblemSpec::max_steps)
       .def_readonly("threads", &ProblemSpec::threads)
+      .def_readonly("flush_subnormals", &ProblemSpec::flush_subnormals)
       .def_property_readonly("every",
                              [](const ProblemSpec& s) -> py::object {
                                if (s.every == kAutoEvery) return py::str("auto");

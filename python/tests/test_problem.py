@@ -283,7 +283,7 @@ def test_keywords_are_the_file_keys(tmp_path):
                   history="direct", history_tolerance=1e-9, abs_tolerance=1e-7,
                   rel_tolerance=1e-6, linear_solver="dense", load="pointwise",
                   split="taylor", error_estimate="richardson", tolerance=10.0, max_steps=123456, threads=1,
-                  every=2, mirror="off", times=[0.5, 1.5], format="npz")
+                  flush_subnormals=False, every=2, mirror="off", times=[0.5, 1.5], format="npz")
     assert {r["key"] for r in rows} == set(values)
     problem = fracvi.Problem.from_toml(PROBLEM)
     fields = {k: v for k, v in values.items() if k != "history"}  # a run option of integrate()

@@ -23,6 +23,7 @@
 #include "fracvi/core/memory.hpp"
 #include "fracvi/integrate/dense_output.hpp"
 #include "fracvi/internal/background_thread.hpp"
+#include "fracvi/internal/float_environment.hpp"
 #include "fracvi/schemes/history_budget.hpp"
 #include "fracvi/solve/vector_passes.hpp"
 
@@ -111,10 +112,12 @@ std::size_t stored_rows(std::size_t n_steps, std::size_t every) {
 // only (finish()); the mirror thread sees a flag.
 class AlongsideMirror {
  public:
-  AlongsideMirror(const Stepper& stepper, std::vector<std::size_t> steps, Eigen::Index d)
+  // `flush_subnormals`: IntegratorOptions::flush_subnormals, for the mirror run's thread.
+  AlongsideMirror(const Stepper& stepper, std::vector<std::size_t> steps, Eigen::Index d,
+                  bool flush_subnormals)
       : steps_(std::move(steps)),
         rows_(steps_, static_cast<Eigen::Index>(steps_.size()), d, cancel_),
-        thread_([this, &stepper] { body(stepper); }) {}
+        thread_([this, &stepper, flush_subnormals] { body(stepper, flush_subnormals); }) {}
   ~AlongsideMirror() {
     cancel_.store(true, std::memory_order_relaxed);
     {
@@ -193,8 +196,9 @@ class AlongsideMirror {
     const std::atomic<bool>& cancel_;
   };
 
-  void body(const Stepper& stepper) {
+  void body(const Stepper& stepper, bool flush_subnormals) {
     internal::lower_this_thread_priority();  // the run keeps its core (background_thread.hpp)
+    const internal::SubnormalsFlushed flushed(flush_subnormals);  // as the mirror run after it
     {
       std::unique_lock<std::mutex> lock(mutex_);
       changed_.wait(lock, [this] { return gate_ != Gate::kClosed; });
@@ -383,8 +387,8 @@ struct Integrator::Impl {
                          static_cast<double>(d) * sizeof(double);
     if (bytes > kMaxAlongsideMirrorBytes) return;
     try {
-      alongside =
-          std::make_unique<AlongsideMirror>(*stepper, stored_steps(n_steps, options.save_every), d);
+      alongside = std::make_unique<AlongsideMirror>(
+          *stepper, stored_steps(n_steps, options.save_every), d, options.flush_subnormals);
     } catch (const std::system_error&) {
       alongside.reset();  // no thread: the mirror run after the run
     }
@@ -950,6 +954,7 @@ Integrator::Integrator(Integrator&&) noexcept = default;
 Integrator& Integrator::operator=(Integrator&&) noexcept = default;
 
 Status Integrator::step() noexcept {
+  const internal::SubnormalsFlushed flushed(impl_->options.flush_subnormals);
   return impl_->step();
 }
 Status Integrator::status() const {
@@ -1000,6 +1005,8 @@ void Integrator::visit_state(StateArchive& archive) {
 
 double Integrator::mirror_error() const {
   if (impl_->status != Status::kSuccess) return kNaN;
+  // The same floating-point environment as the run alongside (AlongsideMirror::body) and the run.
+  const internal::SubnormalsFlushed flushed(impl_->options.flush_subnormals);
   return impl_->stepper->mirror_error(
       impl_->sol.x, std::span<const std::size_t>(impl_->sol.step.data(), impl_->saved),
       impl_->options.interrupt);

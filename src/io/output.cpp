@@ -86,6 +86,7 @@ IntegratorOptions make_integrator_options(const ProblemSpec& spec) {
   o.tolerance = spec.tolerance;
   o.max_steps = static_cast<std::size_t>(spec.max_steps);
   o.threads = spec.threads;
+  o.flush_subnormals = spec.flush_subnormals;
   o.save_every = static_cast<std::size_t>(stored_every(spec));
   o.mirror = mirror_check_runs(spec);
   // On a second core alongside the run where it applies (integrator.hpp): a problem file's run is

@@ -768,6 +768,9 @@ ProblemSpec read(const toml::table& root, const std::string& source) {
     p.threads = static_cast<int>(threads);
   }
   if (p.chain) p.chain->threads = p.threads;
+  if (const auto* n = r.find("method", "flush_subnormals")) {
+    p.flush_subnormals = r.boolean(*n, "method.flush_subnormals");
+  }
   // [output]
   if (const auto* n = r.find("output", "every")) {
     // "auto" (the default): from time.steps (stored_every, problem_file.hpp).

@@ -233,6 +233,11 @@ std::vector<ProblemField> make_schema() {
       {"method", "threads", "integer", std::to_string(d.threads), "OpenMP threads; 0 = all",
        FRACVI_BINDING(IntegratorOptions, threads),
        [](P p) { return Json(static_cast<std::int64_t>(p.threads)); }},
+      {"method", "flush_subnormals", "boolean", d.flush_subnormals ? "true" : "false",
+       "flush numbers below 2.2e-308 to zero while stepping (x86-64: 3x faster where a run "
+       "has them); false keeps gradual underflow",
+       FRACVI_BINDING(IntegratorOptions, flush_subnormals),
+       [](P p) { return Json(p.flush_subnormals); }},
       {"output", "every", "integer or string", in_quotes("auto"),
        "store every n-th state and the last; \"auto\": every state up to 10^5 steps, beyond the "
        "smallest power of two that keeps 10^5 + 1",

@@ -5,6 +5,7 @@
 #include <thread>
 
 #include "fracvi/internal/cpu_placement.hpp"
+#include "fracvi/internal/float_environment.hpp"
 #include "fracvi/internal/parallel.hpp"
 #include "fracvi/memory/history.hpp"
 
@@ -39,6 +40,7 @@ class AheadThread {
     rows_ = rows;
     timed_ = timed;
     caller_cpu_ = current_cpu();
+    flush_bits_ = flush_bits();
     state_.store(kWork, std::memory_order_release);
     state_.notify_one();
   }
@@ -81,6 +83,8 @@ class AheadThread {
     for (;;) {
       if (await_other_than(kIdle) == kStop) return;
       const int caller_cpu = caller_cpu_;  // posted with the job (the next post may change it)
+      // The caller's floating-point environment: the same numbers on one thread or two.
+      adopt_flush_bits(flush_bits_);
       if (timed_) started_ = Clock::now();
       job_.run_ahead(0, rows_, slot_, first_);
       if (timed_) finished_ = Clock::now();
@@ -98,6 +102,7 @@ class AheadThread {
   bool timed_ = false;
   Clock::time_point started_{}, finished_{};  // written by the worker, read after finish()
   int caller_cpu_ = -1;                       // where the caller posted the job from
+  unsigned flush_bits_ = 0;                   // the caller's (float_environment.hpp)
   bool movable_ = true;                       // the worker's thread only
   mutable std::atomic<int> state_{kIdle};
   std::thread worker_;  // last: it starts serving once the members above exist

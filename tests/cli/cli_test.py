@@ -529,7 +529,8 @@ class Run(unittest.TestCase):
              "fracvi run: <built-in problem>: --set method.newton_tolerence: unknown key (did you "
              "mean 'newton_tolerance'?); valid in [method]: scheme, newton_tolerance, "
              "newton_max_iterations, history, history_tolerance, abs_tolerance, rel_tolerance, "
-             "linear_solver, load, split, error_estimate, mirror, tolerance, max_steps, threads"),
+             "linear_solver, load, split, error_estimate, mirror, tolerance, max_steps, threads, "
+             "flush_subnormals"),
             (["output.stride=2"],
              "fracvi run: <built-in problem>: --set output.stride: unknown key; valid in [output]: "
              "every, checkpoint_every, format, times"),

@@ -589,6 +589,22 @@ TEST(ProblemFile, HistoryToleranceAutoOrNumber) {
                {"method.history_tolerance", "must be \"auto\" or in [1e-13, 1e-3]"});
 }
 
+// method.flush_subnormals: true (the default) or false, passed to the integrator, kept by the
+// round trip; anything but a boolean is refused with the key.
+TEST(ProblemFile, FlushSubnormalsIsABoolean) {
+  EXPECT_TRUE(parse(kBase).flush_subnormals);
+  EXPECT_TRUE(make_integrator_options(parse(kBase)).flush_subnormals);
+  const ProblemSpec kept = parse(kBase, {"method.flush_subnormals=false"});
+  EXPECT_FALSE(kept.flush_subnormals);
+  EXPECT_FALSE(make_integrator_options(kept).flush_subnormals);
+  EXPECT_FALSE(parse_problem(to_toml(kept), "round-trip").flush_subnormals);
+  EXPECT_EQ(to_json(kept)["method"]["flush_subnormals"], false);
+  expect_error(kBase + "[method]\nflush_subnormals = 1\n",
+               {"method.flush_subnormals", "must be true or false, got an integer"});
+  expect_error(kBase + "[method]\nflush_subnormals = \"yes\"\n",
+               {"method.flush_subnormals", "must be true or false"});
+}
+
 TEST(ProblemFile, RoundTripOfTheNewKeys) {
   const std::string text = chain_with("[time]", "velocity = \"0.01*i\"\n[time]") +
                            "[method]\nlinear_solver = \"sparse\"\nthreads = 1\n[output]\nevery = "

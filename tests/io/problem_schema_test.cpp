@@ -195,6 +195,7 @@ std::vector<std::string> differences(const fracvi::ProblemSpec& a, const fracvi:
   check(a.tolerance == b.tolerance, "tolerance");
   check(a.max_steps == b.max_steps, "max_steps");
   check(a.threads == b.threads, "threads");
+  check(a.flush_subnormals == b.flush_subnormals, "flush_subnormals");
   check(a.every == b.every, "every");
   check(a.checkpoint_every == b.checkpoint_every, "checkpoint_every");
   check(a.times == b.times, "times");
@@ -355,6 +356,7 @@ const std::vector<Case>& cases() {
       {"method.tolerance", "", [](Json& j) { j["method"]["tolerance"] = 1e-5; }},
       {"method.max_steps", "", [](Json& j) { j["method"]["max_steps"] = 123456; }},
       {"method.threads", "", [](Json& j) { j["method"]["threads"] = 3; }},
+      {"method.flush_subnormals", "", [](Json& j) { j["method"]["flush_subnormals"] = false; }},
       {"output.every", "", [](Json& j) { j["output"]["every"] = 5; }},
       {"output.checkpoint_every", "", [](Json& j) { j["output"]["checkpoint_every"] = 250; }},
       {"output.format", "", [](Json& j) { j["output"]["format"] = "npz"; }},
@@ -479,7 +481,7 @@ TEST(ProblemWriters, SetOverridesAreCheckedAgainstTheSchema) {
       "<built-in>: --set method.newton_tolerence: unknown key (did you mean 'newton_tolerance'?); "
       "valid in [method]: scheme, newton_tolerance, newton_max_iterations, history, "
       "history_tolerance, abs_tolerance, rel_tolerance, linear_solver, load, split, "
-      "error_estimate, mirror, tolerance, max_steps, threads");
+      "error_estimate, mirror, tolerance, max_steps, threads, flush_subnormals");
   EXPECT_EQ(message("output.every.n=1"),
             "<built-in>: --set output.every.n: unknown section [output.every]; valid sections: "
             "[model], [model.chain], [initial], [boundary], [time], [method], [output], "

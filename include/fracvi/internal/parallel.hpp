@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 #include <chrono>
 
+#include "fracvi/internal/float_environment.hpp"
 #include "fracvi/internal/team_chooser.hpp"
 
 namespace fracvi::internal {
@@ -48,8 +49,10 @@ void for_blocks(Eigen::Index n, int threads, Body&& body) {
     body(Eigen::Index{0}, n);
     return;
   }
+  const unsigned flush = flush_bits();  // the team computes as the caller does
 #pragma omp parallel num_threads(threads)
   {
+    adopt_flush_bits(flush);
     const Eigen::Index parts = omp_get_num_threads(), part = omp_get_thread_num();
     body(n * part / parts, n * (part + 1) / parts);
   }
@@ -60,8 +63,10 @@ template <class Body>
 double sum_blocks(Eigen::Index n, int threads, Body&& body) {
   if (threads <= 1) return body(Eigen::Index{0}, n);
   double total = 0.0;
+  const unsigned flush = flush_bits();  // the team computes as the caller does
 #pragma omp parallel num_threads(threads) reduction(+ : total)
   {
+    adopt_flush_bits(flush);
     const Eigen::Index parts = omp_get_num_threads(), part = omp_get_thread_num();
     total += body(n * part / parts, n * (part + 1) / parts);
   }

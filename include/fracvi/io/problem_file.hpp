@@ -128,6 +128,8 @@ struct ProblemSpec {
   std::string mirror = "auto";
   int threads =
       IntegratorOptions{}.threads;  ///< OpenMP threads over the degrees of freedom; 0 = all
+  /// subnormal numbers flushed to zero while stepping (IntegratorOptions::flush_subnormals)
+  bool flush_subnormals = IntegratorOptions{}.flush_subnormals;
 
   // [output]
   /// store every n-th step (IntegratorOptions::save_every) and the last; kAutoEvery ("auto", the

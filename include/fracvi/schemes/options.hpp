@@ -100,6 +100,15 @@ struct IntegratorOptions {
   /// for a time-dependent U, and a few dot products). When false those columns stay NaN and
   /// Solution::max_balance_error is NaN.
   bool diagnostics = true;
+  /// Flush subnormal numbers (below DBL_MIN ≈ 2.2e-308) to zero while stepping: each step, and
+  /// the library's threads working for it, compute with SSE's flush-to-zero and
+  /// denormals-are-zero set, and the caller's setting is restored after the step (a potential's or
+  /// force's callbacks run inside it). A localised pulse in a chain keeps positions and history
+  /// states in the subnormal range, where each operation costs ≈ 100 cycles on x86-64
+  /// (examples/fractional_chain.toml stepped 3× slower: bench/RESULTS.md); flushed, the run's
+  /// absolute floor is DBL_MIN instead of 4.9e-324. False keeps gradual underflow. x86-64 only
+  /// (elsewhere subnormals are kept); internal/float_environment.hpp.
+  bool flush_subnormals = true;
   StartValue start = StartValue::kDiscreteLegendre;
   /// How the forcing enters (ForcingLoad); kMoments is refused for schemes without it
   /// (SchemeInfo::forcing_moments).
