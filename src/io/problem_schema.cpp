@@ -234,7 +234,7 @@ std::vector<ProblemField> make_schema() {
        FRACVI_BINDING(IntegratorOptions, threads),
        [](P p) { return Json(static_cast<std::int64_t>(p.threads)); }},
       {"method", "flush_subnormals", "boolean", d.flush_subnormals ? "true" : "false",
-       "flush numbers below 2.2e-308 to zero while stepping (x86-64: 3x faster where a run "
+       "flush numbers below 2.2e-308 to zero while stepping (x86-64: 2.4-2.9x faster where a run "
        "has them); false keeps gradual underflow",
        FRACVI_BINDING(IntegratorOptions, flush_subnormals),
        [](P p) { return Json(p.flush_subnormals); }},

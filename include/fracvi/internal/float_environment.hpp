@@ -1,11 +1,11 @@
 // The floating-point environment of the step loop: subnormal numbers flushed to zero (internal).
 //
-// Why: a wave spreading into a chain at rest carries values through the subnormal range (below
-// DBL_MIN ≈ 2.2e-308) at its front for the whole run, and the fast history's recursions keep such
-// values for thousands of steps (a slowly decaying exponential takes 52·ln 2/(λh) steps to cross
-// that range). On x86-64 every operation with a subnormal input or result takes a microcode
-// assist of ≈ 100 cycles instead of one: examples/fractional_chain.toml (d = 1000, ≈ 15 of the
-// 1000 positions subnormal at any time) stepped 3× slower than with them flushed
+// Why: a localised pulse in a chain at rest has values in the subnormal range (below DBL_MIN ≈
+// 2.2e-308) on its flanks for the whole run, and the fast history's recursions keep such values
+// for thousands of steps (a slowly decaying exponential takes 52·ln 2/(λh) steps to cross that
+// range). On x86-64 every operation with a subnormal input or result takes a microcode assist of
+// ≈ 100 cycles instead of one: examples/fractional_chain.toml (d = 1000, 14–20 of the 1000
+// positions subnormal at every stored time) stepped 2.4–2.9× slower than with them flushed
 // (bench/RESULTS.md). IntegratorOptions::flush_subnormals (the default) sets SSE's flush-to-zero
 // (FTZ: a subnormal result becomes 0) and denormals-are-zero (DAZ: a subnormal input reads as 0)
 // for the duration of each step, and the library's own threads (the history's run-ahead thread,

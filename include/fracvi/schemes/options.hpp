@@ -105,7 +105,7 @@ struct IntegratorOptions {
   /// denormals-are-zero set, and the caller's setting is restored after the step (a potential's or
   /// force's callbacks run inside it). A localised pulse in a chain keeps positions and history
   /// states in the subnormal range, where each operation costs ≈ 100 cycles on x86-64
-  /// (examples/fractional_chain.toml stepped 3× slower: bench/RESULTS.md); flushed, the run's
+  /// (examples/fractional_chain.toml stepped 2.4–2.9× slower: bench/RESULTS.md); flushed, the run's
   /// absolute floor is DBL_MIN instead of 4.9e-324. False keeps gradual underflow. x86-64 only
   /// (elsewhere subnormals are kept); internal/float_environment.hpp.
   bool flush_subnormals = true;
