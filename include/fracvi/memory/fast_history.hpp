@@ -80,8 +80,9 @@ class FastHistory final : public History, private internal::RunAheadJob {
   [[nodiscard]] std::size_t capacity() const override { return capacity_; }
   [[nodiscard]] std::string_view kind() const override { return "fast"; }
   [[nodiscard]] std::size_t memory_bytes() const override {
-    return static_cast<std::size_t>(ring_.size() + state_.size() + tail_.size() + sum_.size() +
-                                    head_reversed_.size() + decay_.size() + weights_.size()) *
+    return static_cast<std::size_t>(ring_.size() + state_.size() + tail_.size() +
+                                    step_tail_.size() + sum_.size() + head_reversed_.size() +
+                                    decay_.size() + weights_.size()) *
            sizeof(double);
   }
   [[nodiscard]] Eigen::Index dimension() const override { return ring_.rows(); }
@@ -92,7 +93,9 @@ class FastHistory final : public History, private internal::RunAheadJob {
   /// two runs the next push ahead on its second thread (above); a larger team splits the degrees
   /// of freedom over OpenMP threads. Below kParallelWork multiply–adds per step one thread does
   /// everything (a parallel region costs about a microsecond) — but a team of two, the run-ahead
-  /// thread, from kRunAheadWork.
+  /// thread, from kRunAheadWork. A push that one thread runs alone, with no thread running the next
+  /// one, runs the next push's recursions in the same pass over the state (the same numbers; half
+  /// the state's memory traffic) and leaves the next push run ahead.
   void set_threads(int threads) override;
   /// Rows [0, rows) of each next push go to the run-ahead thread of a team of two, and the caller
   /// runs the rest right after posting them (fast_history.cpp). 0 (the default): balanced by timing
@@ -125,6 +128,9 @@ class FastHistory final : public History, private internal::RunAheadJob {
   // Σ_j w_j Y_j plus the window's terms before its last addition (d): the sum but for the terms
   // with x̃_k (fast_history.cpp, newest_start).
   Eigen::VectorXd tail_;
+  // A push's tail when its recursions run two pushes in one pass: the next push's goes to tail_
+  // (fast_history.cpp, recursion_block_two_steps).
+  Eigen::VectorXd step_tail_;
   Eigen::VectorXd sum_;  // the whole sum after the last push (d)
   std::size_t size_ = 0;
   // The thread count and the run-ahead thread (last: its thread is joined before the arrays it
