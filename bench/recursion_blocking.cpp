@@ -27,36 +27,14 @@ struct Terms {
   const double* weights;  // w_j
 };
 
-// One step: Y_j ← a_j Y_j + x, tail = Σ_j w_j Y_j (groups of four summed pairwise, ascending j).
-FRACVI_HOT_KERNEL __attribute__((noinline)) void one_step(long n, long terms, double* state,
-                                                          Terms t, const double* x, double* tail) {
-  for (long j = 0; j < terms; j += 4) {
-    double* y0 = state + j * n;
-    double* y1 = y0 + n;
-    double* y2 = y1 + n;
-    double* y3 = y2 + n;
-    const double a0 = t.decay[j], a1 = t.decay[j + 1], a2 = t.decay[j + 2], a3 = t.decay[j + 3];
-    const double w0 = t.weights[j], w1 = t.weights[j + 1], w2 = t.weights[j + 2],
-                 w3 = t.weights[j + 3];
-    const bool first = j == 0;
-#pragma GCC ivdep
-    for (long i = 0; i < n; ++i) {
-      const double v0 = a0 * y0[i] + x[i], v1 = a1 * y1[i] + x[i];
-      const double v2 = a2 * y2[i] + x[i], v3 = a3 * y3[i] + x[i];
-      y0[i] = v0;
-      y1[i] = v1;
-      y2[i] = v2;
-      y3[i] = v3;
-      tail[i] = (first ? 0.0 : tail[i]) + ((w0 * v0 + w1 * v1) + (w2 * v2 + w3 * v3));
-    }
-  }
-}
-
-// Two steps in one pass: the same operations per element as two calls of one_step.
-FRACVI_HOT_KERNEL __attribute__((noinline)) void two_steps(long n, long terms, double* state,
-                                                           Terms t, const double* x1,
-                                                           const double* x2, double* tail1,
-                                                           double* tail2) {
+// One step (kTwoSteps false): Y_j ← a_j Y_j + x1, tail1 = Σ_j w_j Y_j (groups of four summed
+// pairwise, ascending j). Two steps in one pass (true): then x2 enters too and its terms go to
+// tail2 — the same operations per element as two one-step calls. (The loop of FastHistory's
+// kernels, memory/fast_history.cpp, repeated here because those are internal to the library.)
+template <bool kTwoSteps>
+[[gnu::always_inline]] inline void pass(long n, long terms, double* state, Terms t,
+                                        const double* x1, const double* x2, double* tail1,
+                                        double* tail2) {
   for (long j = 0; j < terms; j += 4) {
     double* y0 = state + j * n;
     double* y1 = y0 + n;
@@ -71,15 +49,34 @@ FRACVI_HOT_KERNEL __attribute__((noinline)) void two_steps(long n, long terms, d
       const double v0 = a0 * y0[i] + x1[i], v1 = a1 * y1[i] + x1[i];
       const double v2 = a2 * y2[i] + x1[i], v3 = a3 * y3[i] + x1[i];
       tail1[i] = (first ? 0.0 : tail1[i]) + ((w0 * v0 + w1 * v1) + (w2 * v2 + w3 * v3));
-      const double u0 = a0 * v0 + x2[i], u1 = a1 * v1 + x2[i];
-      const double u2 = a2 * v2 + x2[i], u3 = a3 * v3 + x2[i];
-      y0[i] = u0;
-      y1[i] = u1;
-      y2[i] = u2;
-      y3[i] = u3;
-      tail2[i] = (first ? 0.0 : tail2[i]) + ((w0 * u0 + w1 * u1) + (w2 * u2 + w3 * u3));
+      if constexpr (kTwoSteps) {
+        const double u0 = a0 * v0 + x2[i], u1 = a1 * v1 + x2[i];
+        const double u2 = a2 * v2 + x2[i], u3 = a3 * v3 + x2[i];
+        y0[i] = u0;
+        y1[i] = u1;
+        y2[i] = u2;
+        y3[i] = u3;
+        tail2[i] = (first ? 0.0 : tail2[i]) + ((w0 * u0 + w1 * u1) + (w2 * u2 + w3 * u3));
+      } else {
+        y0[i] = v0;
+        y1[i] = v1;
+        y2[i] = v2;
+        y3[i] = v3;
+      }
     }
   }
+}
+
+FRACVI_HOT_KERNEL __attribute__((noinline)) void one_step(long n, long terms, double* state,
+                                                          Terms t, const double* x, double* tail) {
+  pass<false>(n, terms, state, t, x, nullptr, tail, nullptr);
+}
+
+FRACVI_HOT_KERNEL __attribute__((noinline)) void two_steps(long n, long terms, double* state,
+                                                           Terms t, const double* x1,
+                                                           const double* x2, double* tail1,
+                                                           double* tail2) {
+  pass<true>(n, terms, state, t, x1, x2, tail1, tail2);
 }
 
 }  // namespace

@@ -164,8 +164,8 @@ void recursion_block(const internal::FastHistoryBlock& blk) {
 // every Y_j, which is loaded and stored once; push k's tail goes to blk.tail and push k + 1's to
 // `next_tail`. Each element sees the operations of recursion_block for push k and then for
 // push k + 1 in the same order (the groups of four, the remainder), so the numbers are the same
-// bit for bit; the state moves through the caches once instead of twice (1.4–1.5× on these loops
-// at d = 1000, 1.7× at d = 10^4: bench/recursion_blocking, bench/RESULTS.md).
+// bit for bit; the state moves through the caches once instead of twice (1.4–1.7× on these loops
+// at d = 1000, 1.6–2.0× at d = 10^4: bench/recursion_blocking, bench/RESULTS.md).
 FRACVI_HOT_KERNEL
 void recursion_block_two_steps(const internal::FastHistoryBlock& blk, const double* next_leaving,
                                double* next_tail) {
@@ -483,40 +483,31 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   // have done, into tail_; the next push then runs as one run ahead (the same numbers).
   const bool two_steps =
       run_recursions && turn.split == 1 && !turn.post_next && size_ + 1 < capacity_;
-  if (two_steps) {
-    const auto next_first = static_cast<Eigen::Index>((size_ + 2) % n0);
-    for (Eigen::Index b = 0; b < d; b += kBlock) {
-      const Eigen::Index n = std::min(kBlock, d - b);
-      internal::FastHistoryBlock now = block(b, n, terms, slot, first, entering);
-      now.tail = step_tail_.data() + b;
-      recursion_block_two_steps(now, ring_.col(first).data() + b, tail_.data() + b);
-      older_window_block(now);
-      newest_block(now);
-      older_window_block(block(b, n, terms, first, next_first, nullptr));
-    }
-    ++size_;
-    run_ahead_.end(turn, first, next_first);
-    run_ahead_.set_ahead(true);
-    return;
-  }
+  const auto next_first = static_cast<Eigen::Index>((size_ + 2) % n0);
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
     for (Eigen::Index b = lo; b < hi; b += kBlock) {
       const Eigen::Index n = std::min(kBlock, hi - b);
-      const internal::FastHistoryBlock rows =
+      internal::FastHistoryBlock rows =
           block(b, n, run_recursions ? terms : 0, slot, first, entering);
-      if (!turn.ahead) {
+      if (two_steps) {
+        rows.tail = step_tail_.data() + b;  // this push's; the next push's goes to tail_
+        recursion_block_two_steps(rows, ring_.col(first).data() + b, tail_.data() + b);
+        older_window_block(rows);
+      } else if (!turn.ahead) {
         recursion_block(rows);
         older_window_block(rows);
       }
       newest_block(rows);
+      // The next push's older window, now that x̃_k is in these rows of the ring.
+      if (two_steps) older_window_block(block(b, n, terms, first, next_first, nullptr));
     }
   };
   // A team of two runs the next push ahead (the caller only makes the window's last addition); a
   // larger team splits the rows.
   internal::for_blocks(d, turn.split, update);
   ++size_;
-  run_ahead_.end(turn, static_cast<Eigen::Index>(size_ % n0),
-                 static_cast<Eigen::Index>((size_ + 1) % n0));
+  run_ahead_.end(turn, first, next_first);
+  if (two_steps) run_ahead_.set_ahead(true);
 }
 
 void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {

@@ -13,7 +13,8 @@
 // run computes the same numbers on any number of threads. The cost: an absolute floor of DBL_MIN
 // instead of 4.9e-324 (gradual underflow keeps fewer significant digits there anyway). Only these
 // two bits are touched: the rounding mode and the sticky exception flags stay the caller's.
-// Other architectures: not implemented (kCanFlushSubnormals = false; subnormals are kept).
+// Other architectures keep subnormals: only x86-64's MXCSR is set (kCanFlushSubnormals = false
+// elsewhere, where the option has no effect and its tests skip).
 #pragma once
 
 #if defined(__x86_64__) || defined(_M_X64)
