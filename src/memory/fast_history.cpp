@@ -73,16 +73,27 @@ std::shared_ptr<const ExponentialFit> checked_fit(std::shared_ptr<const Exponent
 // Four recursions j … j + 3 over the block's rows, their terms added to the tail; the first
 // group (kFirst) adds them to 0 instead of reading the tail: 0 + s is the same number as a zeroed
 // tail plus s, −0 included (an assignment of s would keep −0), without a pass that zeroes it.
-// kTwoSteps: two pushes in one pass (recursion_block_two_steps): x̃_{k+1−n0} (`x2`) enters after
-// x̃_{k−n0}, the next push's terms going to `tail2`; each element sees the one-step operations of
-// push k and then of push k + 1, in that order.
-template <bool kFirst, bool kTwoSteps>
+// kSteps pushes in one pass (recursion_block_steps): push k + s's leaving value x̃_{k+s−n0}
+// (`in.leaving[s]`, s = 0 being blk.leaving) enters after push k + s − 1's, its terms going to
+// `in.tail[s]`; each element sees the one-step operations of push k, then of push k + 1, …, in
+// that order, so the numbers are those of kSteps one-step passes bit for bit.
+template <int kSteps>
+struct StepInputs {
+  const double* leaving[kSteps];
+  double* tail[kSteps];
+};
+
+template <bool kFirst, int kSteps>
 [[gnu::always_inline]] inline void recursion_group(const internal::FastHistoryBlock& blk,
-                                                   Eigen::Index j, const double* __restrict x2,
-                                                   double* __restrict tail2) {
+                                                   Eigen::Index j, const StepInputs<kSteps>& in) {
   const Eigen::Index n = blk.rows, stride = blk.state_stride;
-  double* __restrict tail = blk.tail;
-  const double* __restrict x = blk.leaving;
+  // Local copies: a store through a tail could otherwise alias the pointers themselves.
+  const double* x[kSteps];
+  double* tail[kSteps];
+  for (int s = 0; s < kSteps; ++s) {
+    x[s] = in.leaving[s];
+    tail[s] = in.tail[s];
+  }
   // Four columns of one array: restrict pointers would not vectorise (vectorize.hpp).
   double* y0 = blk.state + j * stride;
   double* y1 = blk.state + (j + 1) * stride;
@@ -94,82 +105,99 @@ template <bool kFirst, bool kTwoSteps>
                w3 = blk.weights[j + 3];
   FRACVI_INDEPENDENT_ITERATIONS
   for (Eigen::Index i = 0; i < n; ++i) {
-    const double v0 = a0 * y0[i] + x[i], v1 = a1 * y1[i] + x[i];
-    const double v2 = a2 * y2[i] + x[i], v3 = a3 * y3[i] + x[i];
-    if constexpr (kTwoSteps) {
-      tail[i] = (kFirst ? 0.0 : tail[i]) + ((w0 * v0 + w1 * v1) + (w2 * v2 + w3 * v3));
-      const double u0 = a0 * v0 + x2[i], u1 = a1 * v1 + x2[i];
-      const double u2 = a2 * v2 + x2[i], u3 = a3 * v3 + x2[i];
-      y0[i] = u0;
-      y1[i] = u1;
-      y2[i] = u2;
-      y3[i] = u3;
-      tail2[i] = (kFirst ? 0.0 : tail2[i]) + ((w0 * u0 + w1 * u1) + (w2 * u2 + w3 * u3));
-    } else {
-      y0[i] = v0;
-      y1[i] = v1;
-      y2[i] = v2;
-      y3[i] = v3;
-      tail[i] = (kFirst ? 0.0 : tail[i]) + ((w0 * v0 + w1 * v1) + (w2 * v2 + w3 * v3));
+    double v0 = y0[i], v1 = y1[i], v2 = y2[i], v3 = y3[i];
+#pragma GCC unroll 4
+    for (int s = 0; s < kSteps; ++s) {
+      const double xs = x[s][i];
+      v0 = a0 * v0 + xs;
+      v1 = a1 * v1 + xs;
+      v2 = a2 * v2 + xs;
+      v3 = a3 * v3 + xs;
+      tail[s][i] = (kFirst ? 0.0 : tail[s][i]) + ((w0 * v0 + w1 * v1) + (w2 * v2 + w3 * v3));
     }
+    y0[i] = v0;
+    y1[i] = v1;
+    y2[i] = v2;
+    y3[i] = v3;
   }
 }
 
 // All recursions of the block's rows: the groups of four, then the remaining terms one by one.
-template <bool kTwoSteps>
+template <int kSteps>
 [[gnu::always_inline]] inline void recursion_pass(const internal::FastHistoryBlock& blk,
-                                                  const double* next_leaving, double* next_tail) {
+                                                  const StepInputs<kSteps>& in) {
   const Eigen::Index n = blk.rows, terms = blk.terms, stride = blk.state_stride;
   double* const state = blk.state;
   Eigen::Index j = 0;
   if (terms >= 4) {
-    recursion_group<true, kTwoSteps>(blk, 0, next_leaving, next_tail);
+    recursion_group<true, kSteps>(blk, 0, in);
     j = 4;
   } else {
-    for (Eigen::Index i = 0; i < n; ++i) {  // no recursions yet: the tail is 0
-      blk.tail[i] = 0.0;
-      if constexpr (kTwoSteps) next_tail[i] = 0.0;
+    for (int s = 0; s < kSteps; ++s) {  // no recursions yet: the tails are 0
+      for (Eigen::Index i = 0; i < n; ++i) in.tail[s][i] = 0.0;
     }
   }
-  for (; j + 4 <= terms; j += 4) recursion_group<false, kTwoSteps>(blk, j, next_leaving, next_tail);
-  double* __restrict tail = blk.tail;
-  [[maybe_unused]] double* __restrict tail2 = next_tail;
-  const double* __restrict x = blk.leaving;
-  [[maybe_unused]] const double* __restrict x2 = next_leaving;
+  for (; j + 4 <= terms; j += 4) recursion_group<false, kSteps>(blk, j, in);
+  // The remaining terms one by one, each loaded and stored once for the kSteps pushes (a loop per
+  // push took a quarter of the pass's time at K = 25 with one remainder term).
+  const double* x[kSteps];
+  double* tail[kSteps];
+  for (int s = 0; s < kSteps; ++s) {
+    x[s] = in.leaving[s];
+    tail[s] = in.tail[s];
+  }
   for (; j < terms; ++j) {
-    double* __restrict y = state + j * stride;
+    double* y = state + j * stride;
     const double a = blk.decay[j], w = blk.weights[j];
+    FRACVI_INDEPENDENT_ITERATIONS
     for (Eigen::Index i = 0; i < n; ++i) {
-      const double yi = a * y[i] + x[i];
-      if constexpr (kTwoSteps) {
-        tail[i] += w * yi;
-        const double ui = a * yi + x2[i];
-        y[i] = ui;
-        tail2[i] += w * ui;
-      } else {
-        y[i] = yi;
-        tail[i] += w * yi;
+      double v = y[i];
+#pragma GCC unroll 4
+      for (int s = 0; s < kSteps; ++s) {
+        v = a * v + x[s][i];
+        tail[s][i] += w * v;
       }
+      y[i] = v;
     }
   }
 }
 
 FRACVI_HOT_KERNEL
 void recursion_block(const internal::FastHistoryBlock& blk) {
-  recursion_pass<false>(blk, nullptr, nullptr);
+  recursion_pass<1>(blk, {{blk.leaving}, {blk.tail}});
 }
 
-// Two pushes' recursions in one pass over the state (FastHistory::push, when one thread runs them
-// and no push is run ahead): x̃_{k−n0} (blk.leaving) and then x̃_{k+1−n0} (`next_leaving`) enter
-// every Y_j, which is loaded and stored once; push k's tail goes to blk.tail and push k + 1's to
-// `next_tail`. Each element sees the operations of recursion_block for push k and then for
-// push k + 1 in the same order (the groups of four, the remainder), so the numbers are the same
-// bit for bit; the state moves through the caches once instead of twice (1.4–1.7× on these loops
-// at d = 1000, 1.6–2.0× at d = 10^4: bench/recursion_blocking, bench/RESULTS.md).
+// The most pushes whose recursions one pass runs. Measured on the recursions alone (stand-alone,
+// v3, d = 1000, K = 24, µs a push; bench/RESULTS.md): 1 step a pass 4.6, 2 steps 3.5, 4 steps 2.2,
+// 8 steps 2.1 — from 4 on the pass is bound by its multiply–adds, no longer by moving the state.
+constexpr int kPassSteps = 4;
+
+// Up to kPassSteps pushes' recursions in one pass over the state (FastHistory::push, when one
+// thread runs them and no push is run ahead): the leaving values of pushes k, k + 1, … enter every
+// Y_j, which is loaded and stored once; push k + s's tail goes to tails[s]. Each element sees the
+// operations of recursion_block for push k, then for push k + 1, … in the same order (the groups
+// of four, the remainder), so the numbers are the same bit for bit; the state moves through the
+// caches once instead of `steps` times (bench/recursion_blocking, bench/RESULTS.md).
+template <int kSteps>
+[[gnu::always_inline]] inline void recursion_steps(const internal::FastHistoryBlock& blk,
+                                                   const double* const* leaving,
+                                                   double* const* tails) {
+  StepInputs<kSteps> in;
+  for (int s = 0; s < kSteps; ++s) {
+    in.leaving[s] = leaving[s];
+    in.tail[s] = tails[s];
+  }
+  recursion_pass<kSteps>(blk, in);
+}
+
 FRACVI_HOT_KERNEL
-void recursion_block_two_steps(const internal::FastHistoryBlock& blk, const double* next_leaving,
-                               double* next_tail) {
-  recursion_pass<true>(blk, next_leaving, next_tail);
+void recursion_block_steps(const internal::FastHistoryBlock& blk, int steps,
+                           const double* const* leaving, double* const* tails) {
+  switch (steps) {
+    case 2: recursion_steps<2>(blk, leaving, tails); return;
+    case 3: recursion_steps<3>(blk, leaving, tails); return;
+    default: recursion_steps<4>(blk, leaving, tails); return;
+  }
 }
 
 // The window's terms are added to the tail oldest first, in groups of four summed pairwise and
@@ -396,8 +424,7 @@ FastHistory::FastHistory(std::shared_ptr<const ExponentialFit> fit, Eigen::Index
     interleave(weights_);
   }
   state_.setZero(dimension, k);
-  tail_.setZero(dimension);
-  step_tail_.setZero(dimension);
+  tails_.setZero(dimension, kPassSteps);
   sum_.setZero(dimension);
   configure_threads(0);
 }
@@ -416,10 +443,11 @@ constexpr Eigen::Index kBlock = 256;
 }  // namespace
 
 // The block of rows [b, b + n) of a push whose new value x̃ is `entering` (null for the
-// recursions alone), x̃_{k−n0} in ring column `slot`, the window starting at column `first`.
+// recursions alone), x̃_{k−n0} in ring column `slot`, the window starting at column `first`, its
+// tail in column `tail` of tails_.
 internal::FastHistoryBlock FastHistory::block(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
                                               Eigen::Index slot, Eigen::Index first,
-                                              const double* entering) {
+                                              const double* entering, Eigen::Index tail) {
   return {n,
           terms,
           state_.rows(),
@@ -427,7 +455,7 @@ internal::FastHistoryBlock FastHistory::block(Eigen::Index b, Eigen::Index n, Ei
           ring_.rows(),
           first,
           state_.data() + b,
-          tail_.data() + b,
+          tails_.col(tail).data() + b,
           sum_.data() + b,
           ring_.col(slot).data() + b,
           entering == nullptr ? nullptr : entering + b,
@@ -443,7 +471,8 @@ void FastHistory::run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leavi
   const Eigen::Index terms = state_.cols();
   for (Eigen::Index b = lo; b < hi; b += kBlock) {
     const Eigen::Index n = std::min(kBlock, hi - b);
-    const internal::FastHistoryBlock rows = block(b, n, terms, leaving_slot, first, nullptr);
+    const internal::FastHistoryBlock rows =
+        block(b, n, terms, leaving_slot, first, nullptr, tail_column_);
     recursion_block(rows);
     older_window_block(rows);
   }
@@ -470,44 +499,67 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
     // Far below kParallelWork: one block on this thread, without the team's bookkeeping (a third
     // of a d = 1 push's instructions went there, callgrind); never run ahead (no second thread,
     // and visit_state refuses a small system's checkpoint that says so).
-    push_rows_across_terms(block(0, d, recurse ? terms : 0, slot, first, entering));
+    push_rows_across_terms(block(0, d, recurse ? terms : 0, slot, first, entering, tail_column_));
     run_ahead_.count_single_push();
     ++size_;
     return;
   }
-  const internal::RunAhead::Turn turn = run_ahead_.begin(size_, n0, capacity_);
+  // The next push's recursions ran in an earlier pass (later_ > 0): no thread runs them again.
+  const internal::RunAhead::Turn turn = run_ahead_.begin(size_, n0, capacity_, later_ > 0);
+  // One thread runs this push's recursions and no thread runs the next push's: run the next
+  // pushes' too, up to kPassSteps in all, in one pass over the state (recursion_block_steps) — push
+  // k + s's leaving value x̃_{k+s−n0} is in ring column (k + s) mod n0 until push k + s, and its
+  // tail goes to the s-th tails_ column from this push's — and their older windows once x̃_k is in
+  // the ring, while the ring's rows are in cache. Push k + s's older window ends with x̃_{k+s−g},
+  // g = n0 − newest_start(n0) (4 when n0 is a multiple of 4, else 1): so a pass covers at most
+  // g + 1 pushes. Each later push then runs as one run ahead (the same numbers), only adding x̃.
   const bool run_recursions = recurse && !turn.ahead;
-  // One thread runs this push's recursions and no thread runs the next push's: run both in one
-  // pass over the state (recursion_block_two_steps), x̃_{k+1−n0} being in ring column `first`,
-  // and the next push's older window once x̃_k is in the ring — what the run-ahead thread would
-  // have done, into tail_; the next push then runs as one run ahead (the same numbers).
-  const bool two_steps =
-      run_recursions && turn.split == 1 && !turn.post_next && size_ + 1 < capacity_;
-  const auto next_first = static_cast<Eigen::Index>((size_ + 2) % n0);
+  const auto gap = static_cast<std::size_t>(window_ - newest_start(window_));
+  const int steps = run_recursions && turn.split == 1 && !turn.post_next
+                        ? static_cast<int>(std::min({static_cast<std::size_t>(kPassSteps),
+                                                     capacity_ - size_, n0, gap + 1}))
+                        : 1;
+  const Eigen::Index own = tail_column_;
+  const auto column = [&](int s) { return (own + s) % kPassSteps; };
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
     for (Eigen::Index b = lo; b < hi; b += kBlock) {
       const Eigen::Index n = std::min(kBlock, hi - b);
-      internal::FastHistoryBlock rows =
-          block(b, n, run_recursions ? terms : 0, slot, first, entering);
-      if (two_steps) {
-        rows.tail = step_tail_.data() + b;  // this push's; the next push's goes to tail_
-        recursion_block_two_steps(rows, ring_.col(first).data() + b, tail_.data() + b);
+      const internal::FastHistoryBlock rows =
+          block(b, n, run_recursions ? terms : 0, slot, first, entering, own);
+      if (steps > 1) {
+        const double* leaving[kPassSteps];
+        double* tails[kPassSteps];
+        for (int s = 0; s < steps; ++s) {
+          leaving[s] = ring_.col(static_cast<Eigen::Index>((size_ + s) % n0)).data() + b;
+          tails[s] = tails_.col(column(s)).data() + b;
+        }
+        recursion_block_steps(rows, steps, leaving, tails);
         older_window_block(rows);
       } else if (!turn.ahead) {
-        recursion_block(rows);
+        recursion_block(rows);  // with no recursions yet (terms = 0), a zero tail
         older_window_block(rows);
       }
       newest_block(rows);
-      // The next push's older window, now that x̃_k is in these rows of the ring.
-      if (two_steps) older_window_block(block(b, n, terms, first, next_first, nullptr));
+      // The later pushes' older windows (push k + s's starts at ring column (k + s + 1) mod n0),
+      // now that x̃_k is in these rows of the ring.
+      for (int s = 1; s < steps; ++s) {
+        const auto window_first = static_cast<Eigen::Index>((size_ + 1 + s) % n0);
+        older_window_block(block(b, n, terms, slot, window_first, nullptr, column(s)));
+      }
     }
   };
   // A team of two runs the next push ahead (the caller only makes the window's last addition); a
   // larger team splits the rows.
   internal::for_blocks(d, turn.split, update);
   ++size_;
-  run_ahead_.end(turn, first, next_first);
-  if (two_steps) run_ahead_.set_ahead(true);
+  if (steps > 1) later_ = static_cast<std::size_t>(steps - 1);  // it was 0: this push not ahead
+  const bool next_ran = later_ > 0;                             // the next push's tail is complete
+  if (next_ran) {
+    tail_column_ = column(1);
+    --later_;
+  }
+  run_ahead_.end(turn, first, static_cast<Eigen::Index>((size_ + 1) % n0));
+  if (next_ran) run_ahead_.set_ahead(true);
 }
 
 void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
@@ -553,7 +605,28 @@ void FastHistory::visit_state(StateArchive& archive) {
   } else {
     archive.dense("fast.recursions", state_);
   }
-  archive.dense("fast.tail", tail_);
+  // The next push's tail, then those of the later pushes that a pass has run (fast.later of them,
+  // in order; the record has room for kPassSteps − 2, zeros beyond): the same records whichever
+  // tails_ column each sits in. (Checkpoints written before 2026-12-02 lack fast.later and are
+  // refused by name.)
+  Eigen::MatrixXd in_order(ring_.rows(), kPassSteps - 1);
+  for (Eigen::Index s = 0; s < in_order.cols(); ++s)
+    in_order.col(s) = tails_.col((tail_column_ + s) % kPassSteps);
+  Eigen::VectorXd next = in_order.col(0);
+  Eigen::MatrixXd later = in_order.rightCols(kPassSteps - 2);
+  if (!archive.loading()) {
+    for (Eigen::Index s = static_cast<Eigen::Index>(later_); s < later.cols(); ++s)
+      later.col(s).setZero();
+  }
+  archive.dense("fast.tail", next);
+  archive.count("fast.later", later_);
+  archive.dense("fast.later_tails", later);
+  if (archive.loading()) {
+    tail_column_ = 0;
+    tails_.setZero();
+    tails_.col(0) = next;
+    tails_.rightCols(kPassSteps - 1).leftCols(kPassSteps - 2) = later;
+  }
   archive.dense("fast.sum", sum_);
   // Whether the recursions and the tail already include the next push's x̃ (run ahead).
   bool ahead = run_ahead_.ahead();
@@ -563,14 +636,21 @@ void FastHistory::visit_state(StateArchive& archive) {
                 ring_.rows() < kAcrossTermsBelow)) {
     throw CheckpointError("checkpoint record 'fast.ahead' is set where no push runs ahead");
   }
+  if (later_ > static_cast<std::size_t>(kPassSteps - 2) || (later_ > 0 && !ahead) ||
+      (later_ > 0 && size_ + later_ >= capacity_)) {
+    throw CheckpointError("checkpoint record 'fast.later' = " + std::to_string(later_) +
+                          " does not fit the state (at most " + std::to_string(kPassSteps - 2) +
+                          ", with 'fast.ahead' set and the pushes within the capacity)");
+  }
 }
 
 void FastHistory::clear() {
   run_ahead_.finish();
   ring_.setZero();
   state_.setZero();
-  tail_.setZero();
-  step_tail_.setZero();
+  tails_.setZero();
+  tail_column_ = 0;
+  later_ = 0;
   sum_.setZero();
   size_ = 0;
   run_ahead_.reset();

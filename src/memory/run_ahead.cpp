@@ -128,7 +128,8 @@ void RunAhead::configure(int threads, Eigen::Index rows, Eigen::Index work) {
   }
 }
 
-RunAhead::Turn RunAhead::begin(std::size_t size, std::size_t window, std::size_t capacity) {
+RunAhead::Turn RunAhead::begin(std::size_t size, std::size_t window, std::size_t capacity,
+                               bool next_ran) {
   // The pushes before the window is full skip the recursions: the thread choice measures again.
   if (size == window) team_.restart();
   // Timed from push to push (TeamChooser::next_by_period): the second thread's work overlaps
@@ -149,7 +150,7 @@ RunAhead::Turn RunAhead::begin(std::size_t size, std::size_t window, std::size_t
   ++pushes_;
   if (threads > 1) ++team_pushes_;
   return {thread_ ? 1 : threads, ahead_,
-          thread_ && threads > 1 && size + 1 >= window && size + 1 < capacity};
+          thread_ && threads > 1 && !next_ran && size + 1 >= window && size + 1 < capacity};
 }
 
 void RunAhead::end(const Turn& turn, Eigen::Index next_slot, Eigen::Index next_first) {

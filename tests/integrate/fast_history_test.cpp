@@ -495,6 +495,112 @@ TEST(FastHistory, OneDegreeOfFreedomCheckpointsItsRecursionsInOrder) {
   }
 }
 
+// A push that one thread runs alone runs the recursions of up to three later pushes in the same
+// pass (fast_history.cpp, recursion_block_steps) — as many as the window n0 allows, since push
+// k + s reads x̃_{k+s−n0}. (1) With windows of 2 and 3 (passes of 2 and 3 pushes) a row's sums are
+// bit for bit those of the d = 3 history, which runs push by push (push_rows_across_terms).
+// (2) A checkpoint taken after any push of the cycle — the next push's tail formed, and 2, 1 or
+// 0 later pushes' tails ("fast.later") — restores to a history that continues bit for bit like
+// the uninterrupted one. (3) A "fast.later" that the state cannot have is refused.
+class LaterOverride final : public StateArchive {
+ public:
+  LaterOverride(StateArchive& inner, std::size_t later) : inner_(inner), later_(later) {}
+  [[nodiscard]] bool loading() const override { return inner_.loading(); }
+  void doubles(std::string_view name, std::span<double> values) override {
+    inner_.doubles(name, values);
+  }
+  void count(std::string_view name, std::size_t& value) override {
+    inner_.count(name, value);
+    if (name == "fast.later") value = later_;
+  }
+
+ private:
+  StateArchive& inner_;
+  std::size_t later_;
+};
+
+class CountCapture final : public StateArchive {
+ public:
+  explicit CountCapture(std::string name) : name_(std::move(name)) {}
+  [[nodiscard]] bool loading() const override { return false; }
+  void doubles(std::string_view, std::span<double>) override {}
+  void count(std::string_view name, std::size_t& value) override {
+    if (name == name_) value_ = value;
+  }
+  [[nodiscard]] std::size_t value() const { return value_; }
+
+ private:
+  std::string name_;
+  std::size_t value_ = 99;
+};
+
+TEST(FastHistory, PassesOfSeveralPushesKeepEveryPushsNumbers) {
+  const std::size_t n = 600;
+  const Eigen::MatrixXd xs = rough_sequence(static_cast<Eigen::Index>(n), 8, 41u);
+  for (const std::size_t window : {2, 3}) {
+    ExponentialFitOptions o;
+    o.order = 1.5;
+    o.max_lag = 4096;
+    o.window = window;
+    const auto fit = shared_exponential_fit(o);
+    FastHistory large(fit, 8, n), small(fit, 3, n);
+    Eigen::VectorXd s_large(8), s_small(3);
+    for (std::size_t k = 0; k < n; ++k) {
+      const Eigen::VectorXd x = xs.col(static_cast<Eigen::Index>(k));
+      large.push(x);
+      small.push(x.head(3));
+      large.sum(s_large);
+      small.sum(s_small);
+      ASSERT_TRUE((s_large.head(3).array() == s_small.array()).all())
+          << "n0 = " << window << ", k = " << k;
+    }
+  }
+
+  const Eigen::Index d = 8;
+  const std::size_t capacity = 4096, pushes = 80;
+  FastHistory reference(1.5, d, capacity);
+  const std::size_t n0 = reference.window();
+  std::vector<Eigen::VectorXd> sums;
+  std::vector<std::string> saved;  // the state after pushes n0 + 1 … n0 + 8
+  std::vector<std::size_t> later;
+  Eigen::VectorXd s(d);
+  for (std::size_t k = 0; k < pushes; ++k) {
+    reference.push(xs.col(static_cast<Eigen::Index>(k)));
+    reference.sum(s);
+    sums.push_back(s);
+    if (k >= n0 && k < n0 + 8) {
+      StateWriter writer;
+      reference.visit_state(writer);
+      saved.push_back(writer.bytes());
+      CountCapture capture("fast.later");
+      reference.visit_state(capture);
+      later.push_back(capture.value());
+    }
+  }
+  // Push n0 (the first with recursions) runs pushes n0 … n0 + 3: 2, 1, 0 later tails after
+  // pushes n0, n0 + 1, n0 + 2; push n0 + 4 starts the next pass.
+  EXPECT_EQ(later, (std::vector<std::size_t>{2, 1, 0, 0, 2, 1, 0, 0}));
+  for (std::size_t i = 0; i < saved.size(); ++i) {
+    FastHistory restored(1.5, d, capacity);
+    StateReader reader(saved[i], "test state");
+    restored.visit_state(reader);
+    reader.finish();
+    for (std::size_t k = n0 + i + 1; k < pushes; ++k) {
+      restored.push(xs.col(static_cast<Eigen::Index>(k)));
+      restored.sum(s);
+      ASSERT_TRUE((s.array() == sums[k].array()).all())
+          << "restored after push " << n0 + i << ", push " << k;
+    }
+  }
+  for (const std::size_t bad : {std::size_t{3}, std::size_t{1}}) {
+    // 3: more than a pass leaves; 1 after push n0 + 3, whose next push runs its own recursions.
+    FastHistory restored(1.5, d, capacity);
+    StateReader reader(saved[bad == 3 ? 0 : 3], "test state");
+    LaterOverride tampered(reader, bad);
+    EXPECT_THROW(restored.visit_state(tampered), CheckpointError) << "fast.later = " << bad;
+  }
+}
+
 TEST(FastHistory, ShortCapacityIsExact) {
   // max_lag < n0: no tail at all (K = 0); the sum is the direct one up to summation order.
   const Eigen::MatrixXd xs = rough_sequence(10, 3, 6u);

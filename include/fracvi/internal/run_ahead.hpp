@@ -72,13 +72,14 @@ class RunAhead {
   /// A push the history made on its own thread without begin() (a system too small for a team).
   void count_single_push() { ++pushes_; }
 
-  /// One push: `size` values pushed before it, window n0, `capacity` pushes in all.
+  /// One push: `size` values pushed before it, window n0, `capacity` pushes in all; `next_ran`:
+  /// the next push's recursions already ran (a pass of several pushes), so none is posted.
   struct Turn {
     int split;       // threads for the push's own rows (1 with the run-ahead thread)
     bool ahead;      // the recursions and older window of this push already ran ahead
     bool post_next;  // end() posts the next push's
   };
-  Turn begin(std::size_t size, std::size_t window, std::size_t capacity);
+  Turn begin(std::size_t size, std::size_t window, std::size_t capacity, bool next_ran = false);
   /// After the push's rows: with turn.post_next, rows [0, rows()) of the next push (its leaving
   /// value in ring column `next_slot`, its window from `next_first`) go to the thread, and the
   /// caller runs the rest now, while the thread runs its share, before it returns to its step.

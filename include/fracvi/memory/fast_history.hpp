@@ -80,9 +80,8 @@ class FastHistory final : public History, private internal::RunAheadJob {
   [[nodiscard]] std::size_t capacity() const override { return capacity_; }
   [[nodiscard]] std::string_view kind() const override { return "fast"; }
   [[nodiscard]] std::size_t memory_bytes() const override {
-    return static_cast<std::size_t>(ring_.size() + state_.size() + tail_.size() +
-                                    step_tail_.size() + sum_.size() + head_reversed_.size() +
-                                    decay_.size() + weights_.size()) *
+    return static_cast<std::size_t>(ring_.size() + state_.size() + tails_.size() + sum_.size() +
+                                    head_reversed_.size() + decay_.size() + weights_.size()) *
            sizeof(double);
   }
   [[nodiscard]] Eigen::Index dimension() const override { return ring_.rows(); }
@@ -94,8 +93,8 @@ class FastHistory final : public History, private internal::RunAheadJob {
   /// of freedom over OpenMP threads. Below kParallelWork multiply–adds per step one thread does
   /// everything (a parallel region costs about a microsecond) — but a team of two, the run-ahead
   /// thread, from kRunAheadWork. A push that one thread runs alone, with no thread running the next
-  /// one, runs the next push's recursions in the same pass over the state (the same numbers; half
-  /// the state's memory traffic) and leaves the next push run ahead.
+  /// one, runs the next three pushes' recursions in the same pass over the state (the same
+  /// numbers; a quarter of the state's memory traffic) and leaves the next push run ahead.
   void set_threads(int threads) override;
   /// Rows [0, rows) of each next push go to the run-ahead thread of a team of two, and the caller
   /// runs the rest right after posting them (fast_history.cpp). 0 (the default): balanced by timing
@@ -125,12 +124,14 @@ class FastHistory final : public History, private internal::RunAheadJob {
   Eigen::ArrayXd decay_;           // e^{−λ_j}
   Eigen::VectorXd weights_;        // w_j
   Eigen::ArrayXXd state_;          // d × K; column j holds Y_j (all degrees of freedom)
-  // Σ_j w_j Y_j plus the window's terms before its last addition (d): the sum but for the terms
-  // with x̃_k (fast_history.cpp, newest_start).
-  Eigen::VectorXd tail_;
-  // A push's tail when its recursions run two pushes in one pass: the next push's goes to tail_
-  // (fast_history.cpp, recursion_block_two_steps).
-  Eigen::VectorXd step_tail_;
+  // Tails Σ_j w_j Y_j, plus the window's terms before its last addition once they are added: the
+  // sum but for the terms with x̃_k (fast_history.cpp, newest_start). d × 4 (kPassSteps): column
+  // tail_column_ is the next push's (where the run-ahead thread forms it), and when one pass ran
+  // several pushes' recursions and older windows (fast_history.cpp, recursion_block_steps) the
+  // following columns, cyclically, hold the complete tails of the later_ pushes after it.
+  Eigen::MatrixXd tails_;
+  Eigen::Index tail_column_ = 0;
+  std::size_t later_ = 0;
   Eigen::VectorXd sum_;  // the whole sum after the last push (d)
   std::size_t size_ = 0;
   // The thread count and the run-ahead thread (last: its thread is joined before the arrays it
@@ -142,9 +143,11 @@ class FastHistory final : public History, private internal::RunAheadJob {
   // window from column `first` (wrapping at n0), the new value `entering` (null: the recursions
   // alone), written into ring column `slot`.
   internal::FastHistoryBlock block(Eigen::Index b, Eigen::Index n, Eigen::Index terms,
-                                   Eigen::Index slot, Eigen::Index first, const double* entering);
+                                   Eigen::Index slot, Eigen::Index first, const double* entering,
+                                   Eigen::Index tail);
   // Rows [lo, hi) of the next push's recursions with x̃ from ring column `leaving_slot`, and its
-  // tail plus the window's terms before the last addition, from column `first` on, into tail_.
+  // tail plus the window's terms before the last addition, from column `first` on, into the next
+  // push's tails_ column.
   void run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot,
                  Eigen::Index first) override;
 };
