@@ -177,6 +177,7 @@ FastBlockHistory::FastBlockHistory(std::shared_ptr<const RkcqTail> tail, std::si
   }
   state_.setZero(dimension, k);
   partial_.setZero(dimension, s);
+  step_partial_.setZero(dimension, s);
   sum_.setZero(dimension, s);
   run_ahead_.configure(0, dimension, push_work());
 }
@@ -273,12 +274,30 @@ template <int S>
 
 // Four recursions i … i + 3 over the rows, their terms added to the outputs; the first group
 // (kFirst) adds them to 0 instead of reading the outputs: 0 + t is the same number as a zeroed
-// output plus t, −0 included, without a pass that zeroes them.
-template <int S, bool kFirst>
+// output plus t, −0 included, without a pass that zeroes them. kSteps pushes in one pass
+// (older_rows_two_steps): push k + t's leaving block x[t] enters after push k + t − 1's, its
+// terms going to out[t]; each element sees the one-step operations of push k, then of push
+// k + 1, in that order, so the numbers are those of one-step passes bit for bit.
+template <int S, int kSteps>
+struct StepColumns {
+  const double* x[kSteps][S];  // the stage vectors of Z_{k+t−n0}, leaving the window at push k + t
+  double* out[kSteps][S];      // push k + t's outputs
+};
+
+template <int S, bool kFirst, int kSteps>
 [[gnu::always_inline]] inline void recursion_group(const BlockHistoryRows& blk,
-                                                   const double* const* x, double* const* out,
+                                                   const StepColumns<S, kSteps>& in,
                                                    Eigen::Index i) {
   const Eigen::Index n = blk.rows, ld = blk.ld, terms = blk.terms;
+  // Local copies: a store through an output could otherwise alias the pointers themselves.
+  const double* x[kSteps][S];
+  double* out[kSteps][S];
+  for (int t = 0; t < kSteps; ++t) {
+    for (int c = 0; c < S; ++c) {
+      x[t][c] = in.x[t][c];
+      out[t][c] = in.out[t][c];
+    }
+  }
   double* y0 = blk.state + i * ld;
   double* y1 = y0 + ld;
   double* y2 = y1 + ld;
@@ -291,22 +310,28 @@ template <int S, bool kFirst>
   }
   FRACVI_INDEPENDENT_ITERATIONS
   for (Eigen::Index r = 0; r < n; ++r) {
-    double w0 = a[0] * y0[r], w1 = a[1] * y1[r], w2 = a[2] * y2[r], w3 = a[3] * y3[r];
-    for (int e = 0; e < S; ++e) {
-      const double z = x[e][r];
-      w0 += v[0][e] * z;
-      w1 += v[1][e] * z;
-      w2 += v[2][e] * z;
-      w3 += v[3][e] * z;
+    double w0 = y0[r], w1 = y1[r], w2 = y2[r], w3 = y3[r];
+    for (int t = 0; t < kSteps; ++t) {
+      w0 *= a[0];
+      w1 *= a[1];
+      w2 *= a[2];
+      w3 *= a[3];
+      for (int e = 0; e < S; ++e) {
+        const double z = x[t][e][r];
+        w0 += v[0][e] * z;
+        w1 += v[1][e] * z;
+        w2 += v[2][e] * z;
+        w3 += v[3][e] * z;
+      }
+      for (int c = 0; c < S; ++c) {
+        out[t][c][r] = (kFirst ? 0.0 : out[t][c][r]) +
+                       ((u[0][c] * w0 + u[1][c] * w1) + (u[2][c] * w2 + u[3][c] * w3));
+      }
     }
     y0[r] = w0;
     y1[r] = w1;
     y2[r] = w2;
     y3[r] = w3;
-    for (int c = 0; c < S; ++c) {
-      out[c][r] = (kFirst ? 0.0 : out[c][r]) +
-                  ((u[0][c] * w0 + u[1][c] * w1) + (u[2][c] * w2 + u[3][c] * w3));
-    }
   }
 }
 
@@ -317,35 +342,77 @@ template <int S, bool kFirst>
 // window, n0·s columns against s outputs. (The layout of one degree of freedom per pass, with the
 // loops over the K terms, ran at 4–7 times s scalar histories per step at d = 100 … 1000:
 // bench/block_history_bench.cpp.)
-// older_rows: the recursions (fed with Z_{k−n0}, which sits in the slot Z_k will take) and the
-// window's columns before newest_start(), into `partial`.
-template <int S>
-[[gnu::always_inline]] inline void older_rows(const BlockHistoryRows& blk) {
+// recursions: the recursions of kSteps pushes (push k + t fed with Z_{k+t−n0}), into their
+// outputs.
+template <int S, int kSteps>
+[[gnu::always_inline]] inline void recursions(const BlockHistoryRows& blk,
+                                              const StepColumns<S, kSteps>& in) {
   const Eigen::Index n = blk.rows, ld = blk.ld, terms = blk.terms;
-  double* out[S];
-  for (int c = 0; c < S; ++c) out[c] = blk.partial + c * ld;
-  const double* x[S];  // the stage vectors of Z_{k−n0}, leaving the window
-  for (int e = 0; e < S; ++e) x[e] = blk.ring + (blk.slot * S + e) * ld;
   Eigen::Index i = 0;
   if (terms >= 4) {
-    recursion_group<S, true>(blk, x, out, 0);
+    recursion_group<S, true, kSteps>(blk, in, 0);
     i = 4;
   } else {
-    for (int c = 0; c < S; ++c)
-      for (Eigen::Index r = 0; r < n; ++r) out[c][r] = 0.0;
+    for (int t = 0; t < kSteps; ++t)
+      for (int c = 0; c < S; ++c)
+        for (Eigen::Index r = 0; r < n; ++r) in.out[t][c][r] = 0.0;
   }
-  for (; i + 4 <= terms; i += 4) recursion_group<S, false>(blk, x, out, i);
+  for (; i + 4 <= terms; i += 4) recursion_group<S, false, kSteps>(blk, in, i);
   for (; i < terms; ++i) {
     double* y = blk.state + i * ld;
     const double a = blk.decay[i];
     FRACVI_INDEPENDENT_ITERATIONS
     for (Eigen::Index r = 0; r < n; ++r) {
-      double w = a * y[r];
-      for (int e = 0; e < S; ++e) w += blk.right[e * terms + i] * x[e][r];
+      double w = y[r];
+      for (int t = 0; t < kSteps; ++t) {
+        w *= a;
+        for (int e = 0; e < S; ++e) w += blk.right[e * terms + i] * in.x[t][e][r];
+        for (int c = 0; c < S; ++c) in.out[t][c][r] += blk.left[c * terms + i] * w;
+      }
       y[r] = w;
-      for (int c = 0; c < S; ++c) out[c][r] += blk.left[c * terms + i] * w;
     }
   }
+}
+
+// The stage vectors of ring position `position` and the s output columns at `outputs`.
+template <int S>
+[[gnu::always_inline]] inline void step_columns(const BlockHistoryRows& blk, Eigen::Index position,
+                                                double* outputs, const double** x, double** out) {
+  for (int e = 0; e < S; ++e) x[e] = blk.ring + (position * S + e) * blk.ld;
+  for (int c = 0; c < S; ++c) out[c] = outputs + c * blk.ld;
+}
+
+// older_rows: the recursions (fed with Z_{k−n0}, which sits in the slot Z_k will take) and the
+// window's columns before newest_start(), into `partial`.
+template <int S>
+[[gnu::always_inline]] inline void older_rows(const BlockHistoryRows& blk) {
+  StepColumns<S, 1> in;
+  step_columns<S>(blk, blk.slot, blk.partial, in.x[0], in.out[0]);
+  recursions<S, 1>(blk, in);
+  add_window<S>(blk, in.out[0], 0, newest_start(blk.window * S, S));
+}
+
+// Two pushes' recursions in one pass over the state (FastBlockHistory::push, when one thread
+// runs them and no push is run ahead): Z_{k−n0} (ring position blk.slot) and Z_{k+1−n0}
+// (`next_slot`) enter every Y_i, which is loaded and stored once; push k's terms go to
+// blk.partial, push k + 1's to `next_partial`; then push k's older window.
+template <int S>
+[[gnu::always_inline]] inline void older_rows_two_steps(const BlockHistoryRows& blk,
+                                                        Eigen::Index next_slot,
+                                                        double* next_partial) {
+  StepColumns<S, 2> in;
+  step_columns<S>(blk, blk.slot, blk.partial, in.x[0], in.out[0]);
+  step_columns<S>(blk, next_slot, next_partial, in.x[1], in.out[1]);
+  recursions<S, 2>(blk, in);
+  add_window<S>(blk, in.out[0], 0, newest_start(blk.window * S, S));
+}
+
+// The window's columns before newest_start() onto `partial` (push k + 1's, once Z_k is in the
+// ring: blk.first its window's start).
+template <int S>
+[[gnu::always_inline]] inline void older_window(const BlockHistoryRows& blk) {
+  double* out[S];
+  for (int c = 0; c < S; ++c) out[c] = blk.partial + c * blk.ld;
   add_window<S>(blk, out, 0, newest_start(blk.window * S, S));
 }
 
@@ -376,34 +443,32 @@ template <int S>
   }
 }
 
-FRACVI_HOT_KERNEL void older_rows2(const BlockHistoryRows& blk) {
-  older_rows<2>(blk);
-}
-FRACVI_HOT_KERNEL void older_rows3(const BlockHistoryRows& blk) {
-  older_rows<3>(blk);
-}
-FRACVI_HOT_KERNEL void older_rows4(const BlockHistoryRows& blk) {
-  older_rows<4>(blk);
-}
-FRACVI_HOT_KERNEL void newest_rows2(const BlockHistoryRows& blk) {
-  newest_rows<2>(blk);
-}
-FRACVI_HOT_KERNEL void newest_rows3(const BlockHistoryRows& blk) {
-  newest_rows<3>(blk);
-}
-FRACVI_HOT_KERNEL void newest_rows4(const BlockHistoryRows& blk) {
-  newest_rows<4>(blk);
-}
+// The kernels of a push for S stages (s = 2, 3, 4: checked_tail() and RungeKuttaCq), each with the
+// x86-64-v3 clone.
+template <int S>
+struct Kernels {
+  FRACVI_HOT_KERNEL static void older(const BlockHistoryRows& blk) { older_rows<S>(blk); }
+  FRACVI_HOT_KERNEL static void older_two_steps(const BlockHistoryRows& blk, Eigen::Index next_slot,
+                                                double* next_partial) {
+    older_rows_two_steps<S>(blk, next_slot, next_partial);
+  }
+  FRACVI_HOT_KERNEL static void window(const BlockHistoryRows& blk) { older_window<S>(blk); }
+  FRACVI_HOT_KERNEL static void newest(const BlockHistoryRows& blk) { newest_rows<S>(blk); }
+};
 
-// The two kernels of a push for s stages (s = 2, 3, 4: checked_tail() and RungeKuttaCq).
 struct StageKernels {
   void (*older)(const BlockHistoryRows&);
+  void (*older_two_steps)(const BlockHistoryRows&, Eigen::Index, double*);
+  void (*window)(const BlockHistoryRows&);
   void (*newest)(const BlockHistoryRows&);
 };
+template <int S>
+constexpr StageKernels kStageKernels{Kernels<S>::older, Kernels<S>::older_two_steps,
+                                     Kernels<S>::window, Kernels<S>::newest};
 StageKernels stage_kernels(Eigen::Index s) {
-  if (s == 2) return {older_rows2, newest_rows2};
-  if (s == 3) return {older_rows3, newest_rows3};
-  return {older_rows4, newest_rows4};
+  if (s == 2) return kStageKernels<2>;
+  if (s == 3) return kStageKernels<3>;
+  return kStageKernels<4>;
 }
 
 // Blocks of kBlock rows keep the s output columns in L1 while the K recursions pass over them.
@@ -453,20 +518,38 @@ void FastBlockHistory::push(const Eigen::Ref<const Eigen::MatrixXd>& block) {
   const auto first = static_cast<Eigen::Index>((size_ + 1) % window);
   const StageKernels kernels = stage_kernels(stages_);
   const internal::RunAhead::Turn turn = run_ahead_.begin(size_, window, capacity_);
+  // One thread runs this push's recursions and no thread runs the next push's: run both in one
+  // pass over the state (older_rows_two_steps), Z_{k+1−n0} being at ring position `first`, and the
+  // next push's older window once Z_k is in the ring (it ends before Z_{k+1}: newest_start()) —
+  // what the run-ahead thread would have done, into partial_; the next push then runs as one run
+  // ahead (the same numbers). This push's own partial sum goes to step_partial_. Two stages only:
+  // there the pass is bound by moving the state, and two steps ran 1.08–1.21× faster
+  // (bench/block_history_bench, d = 100 and 1000); with three and four the recursions' (2s + 1)
+  // multiply–adds per term bound it (3 % slower to 2 % faster, and 5 % slower at s = 4, d = 1000;
+  // bench/RESULTS.md 2026-12-02).
+  const bool two_steps = stages_ == 2 && recurse && !turn.ahead && turn.split == 1 &&
+                         !turn.post_next && size_ + 1 < capacity_ && n0 >= 2;
+  const auto next_first = static_cast<Eigen::Index>((size_ + 2) % window);
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
     for (Eigen::Index b = lo; b < hi; b += kBlock) {
-      const BlockHistoryRows blk =
-          rows(b, std::min(kBlock, hi - b), recurse ? terms : 0, slot, first, &block);
-      if (!turn.ahead) kernels.older(blk);
+      const Eigen::Index n = std::min(kBlock, hi - b);
+      BlockHistoryRows blk = rows(b, n, recurse ? terms : 0, slot, first, &block);
+      if (two_steps) {
+        blk.partial = step_partial_.data() + b;
+        kernels.older_two_steps(blk, first, partial_.data() + b);
+      } else if (!turn.ahead) {
+        kernels.older(blk);
+      }
       kernels.newest(blk);
+      if (two_steps) kernels.window(rows(b, n, terms, first, next_first, nullptr));
     }
   };
   // A team of two runs the next push ahead (the caller only makes the window's last additions);
   // a larger team splits the rows.
   internal::for_blocks(d, turn.split, update);
   ++size_;
-  run_ahead_.end(turn, static_cast<Eigen::Index>(size_ % window),
-                 static_cast<Eigen::Index>((size_ + 1) % window));
+  run_ahead_.end(turn, static_cast<Eigen::Index>(size_ % window), next_first);
+  if (two_steps) run_ahead_.set_ahead(true);
 }
 
 void FastBlockHistory::sum(Eigen::Ref<Eigen::MatrixXd> out) const {
@@ -520,6 +603,7 @@ void FastBlockHistory::clear() {
   ring_.setZero();
   state_.setZero();
   partial_.setZero();
+  step_partial_.setZero();
   sum_.setZero();
   size_ = 0;
   run_ahead_.reset();

@@ -521,8 +521,9 @@ TEST(TeamChooser, FastBlockHistorySumsDoNotDependOnTheChoice) {
 // FastBlockHistory runs ahead like FastHistory (internal/run_ahead.hpp): for s = 2, 3, 4 stages,
 // any split of the next push between the run-ahead thread and the caller — fixed shares, shares
 // changing from push to push, the balanced default — gives the one-thread sums bit for bit; a
-// checkpoint taken while a push ran ahead ("block_fast.ahead") restores, on one thread or two, to
-// the same continuation; clear() waits for the job in flight and starts afresh.
+// checkpoint taken while a push ran ahead ("block_fast.ahead") — by the run-ahead thread, or by one
+// thread's pass of two pushes (s = 2) — restores, on one thread or two, to the same continuation;
+// clear() waits for the job in flight and starts afresh.
 TEST(TeamChooser, FastBlockHistoryRunAheadSplitsAndCheckpointsDoNotChangeTheSums) {
   const Eigen::Index d = 700;  // d (K(2s + 1) + n0 s²) ≥ kRunAheadWork: a team of two runs ahead
   const int pushes = 60, saved_after = 37;
@@ -540,10 +541,22 @@ TEST(TeamChooser, FastBlockHistoryRunAheadSplitsAndCheckpointsDoNotChangeTheSums
       }
     };
     Eigen::MatrixXd reference(d, pushes * s);
+    StateWriter one_writer;  // after push 37 of one thread (s = 2: two pushes a pass, run ahead)
     {
       const auto one = make_fast_block_history(quadrature, d, 1 << 12);
       one->set_threads(1);
-      run(*one, 0, pushes, reference, nullptr);
+      run(*one, 0, pushes, reference, &one_writer);
+    }
+    for (const int threads : {1, 2}) {
+      const auto restored = make_fast_block_history(quadrature, d, 1 << 12);
+      restored->set_threads(threads);
+      StateReader reader(one_writer.bytes(), "test state");
+      restored->visit_state(reader);
+      reader.finish();
+      Eigen::MatrixXd rest = reference;
+      run(*restored, saved_after, pushes, rest, nullptr);
+      EXPECT_TRUE(bitwise_equal(rest, reference))
+          << "s = " << s << ", one thread's state restored on " << threads << " thread(s)";
     }
     const std::vector<Eigen::Index> fixed = {1, 64, 333, 699, 700, 5000};
     for (const Eigen::Index rows :

@@ -131,8 +131,9 @@ class FastBlockHistory final : public BlockHistory, private internal::RunAheadJo
   }
   [[nodiscard]] std::string_view kind() const override { return "fast"; }
   [[nodiscard]] std::size_t memory_bytes() const override {
-    return static_cast<std::size_t>(ring_.size() + state_.size() + partial_.size() + sum_.size() +
-                                    head_.size() + right_.size() + left_.size() + decay_.size()) *
+    return static_cast<std::size_t>(ring_.size() + state_.size() + partial_.size() +
+                                    step_partial_.size() + sum_.size() + head_.size() +
+                                    right_.size() + left_.size() + decay_.size()) *
            sizeof(double);
   }
   /// Threads for push() (0 = measured against one; internal/run_ahead.hpp), as FastHistory's: a
@@ -172,6 +173,9 @@ class FastBlockHistory final : public BlockHistory, private internal::RunAheadJo
   // d × s: the recursions' terms and the window's before its first addition with Z_k (the sum
   // but for those; block_history.cpp, newest_start).
   Eigen::MatrixXd partial_;
+  // A push's partial sum when its recursions run two pushes in one pass: the next push's goes to
+  // partial_ (block_history.cpp, older_rows_two_steps).
+  Eigen::MatrixXd step_partial_;
   Eigen::MatrixXd sum_;  // d × s, the sum after the last push
   std::size_t size_ = 0;
   // The thread count and the run-ahead thread (last: its thread is joined before the arrays it
