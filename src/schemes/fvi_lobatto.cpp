@@ -292,6 +292,14 @@ class StageMatrix {
         }
       }
     }
+    // Each degree of freedom's stages in the order whose elimination needs no row interchanges
+    // for the mass term's coupling, which dominates as h → 0: the x-step's equations of stages
+    // 1 … s − 1 against unknowns 2 … s interchanged every other row in stage order (dgbtrf,
+    // fvi-lobatto3 and 4 on the chains), in reverse order none, and a solve without interchanges
+    // runs along the band in registers (solve/band_lu.cpp): fvi-lobatto3's step at d = 1000 took
+    // 75 against 100 µs (bench/RESULTS.md 2026-12-02). dgbtrf still interchanges where the values
+    // ask for it: the order changes the speed and the rounding, not the stability.
+    reversed_ = interchanges(mass_coeff) && !interchanges(mass_coeff.reverse());
     // The band of the interleaved numbering (the header above); kAuto keeps sparse LU for wide
     // bands.
     Eigen::Index lower_band = 0, upper_band = 0;
@@ -407,13 +415,22 @@ class StageMatrix {
     }
     if (kind_ == LinearSolver::kBanded) {
       // Stage-major (d × (s − 1), column m − 1 = stage m) to interleaved ((s − 1) × d): a
-      // transpose.
       const Eigen::Index stages = s_ - 1;
-      Eigen::Map<Eigen::MatrixXd>(scratch.data(), stages, d_) =
-          Eigen::Map<const Eigen::MatrixXd>(rhs.data(), d_, stages).transpose();
+      // transpose (with the stages reversed: reversed_).
+      const Eigen::Map<const Eigen::MatrixXd> stage_major(rhs.data(), d_, stages);
+      Eigen::Map<Eigen::MatrixXd> by_dof(scratch.data(), stages, d_);
+      if (reversed_) {
+        by_dof = stage_major.rowwise().reverse().transpose();
+      } else {
+        by_dof = stage_major.transpose();
+      }
       band_lu_.solve_in_place(scratch.data());
-      Eigen::Map<Eigen::MatrixXd>(rhs.data(), d_, stages) =
-          Eigen::Map<const Eigen::MatrixXd>(scratch.data(), stages, d_).transpose();
+      Eigen::Map<Eigen::MatrixXd> solved(rhs.data(), d_, stages);
+      if (reversed_) {
+        solved = by_dof.transpose().rowwise().reverse();
+      } else {
+        solved = by_dof.transpose();
+      }
       return;
     }
     // Eigen's SparseLU::solve, step by step (SparseLU.h, _solve_impl), without its two
@@ -463,9 +480,20 @@ class StageMatrix {
   }
 
   // Stage-major index m·d + j (unknown stage m + 1, or equation m, of dof j) in the interleaved
-  // numbering j(s − 1) + m.
+  // numbering j(s − 1) + m (j(s − 1) + s − 2 − m with reversed_).
   [[nodiscard]] Eigen::Index interleaved(Eigen::Index stage_major) const {
-    return (stage_major % d_) * (s_ - 1) + stage_major / d_;
+    const Eigen::Index stage = stage_major / d_;
+    return (stage_major % d_) * (s_ - 1) + (reversed_ ? s_ - 2 - stage : stage);
+  }
+
+  // Whether LU with partial pivoting of `a` interchanges rows (Eigen's choice of the largest
+  // entry in each column, as dgbtrf's).
+  static bool interchanges(const Eigen::MatrixXd& a) {
+    const Eigen::PartialPivLU<Eigen::MatrixXd> lu(a);
+    const auto& p = lu.permutationP().indices();
+    for (Eigen::Index i = 0; i < p.size(); ++i)
+      if (p(i) != i) return true;
+    return false;
   }
 
   void set_value(std::size_t at, double value) {
@@ -488,6 +516,8 @@ class StageMatrix {
   Eigen::MatrixXd D_, force_dx_, force_dv_;
   bool internal_hessians_;
   int first_equation_, first_unknown_;
+  // The band numbering takes each degree of freedom's stages in reverse order (interleaved()).
+  bool reversed_ = false;
   LinearSolver kind_ = LinearSolver::kDense;
   std::size_t factorizations_ = 0;
   std::vector<double> hessian_coeff_;  // −h b_i, internal stages

@@ -128,7 +128,7 @@ LinearSolver choose_factorization(const SymmetricPattern& pattern) {
 
 // LAPACK band storage (column-major). Cholesky, UPLO = 'U': ldab = kd + 1, A(i, j) at
 // (kd + i − j) + j·ldab for j − kd ≤ i ≤ j. The LU fallback (kl = ku = kd) is BandLu
-// (solve/band_lu.hpp: dgbtrf, and dgbtrs's solve in plain loops).
+// (solve/band_lu.hpp: dgbtrf, and dgbtrs's substitutions in plain loops).
 // Bandwidths 0 and 1 have their own routines: a diagonal is divided by, and a tridiagonal matrix
 // is factored LDLᵀ by tridiagonal_ldlt (dpttrf's numbers, chunked; positive definite) or by
 // LAPACK's dgttrf/dgttrs (LU with pivoting), which are plain loops — the general band routines call

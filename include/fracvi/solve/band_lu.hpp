@@ -1,6 +1,7 @@
 // Band LU with partial pivoting of a general n × n matrix of lower bandwidth kl and upper
 // bandwidth ku (internal; public for tests): LAPACK's dgbtrf factors, the solve is dgbtrs's
-// operations in plain loops over the factor packed after each factorisation.
+// substitutions in plain loops over the factor packed after each factorisation, with U's rows
+// scaled by its diagonal so that the backward pass multiplies instead of dividing.
 //
 // Used by the Lobatto schemes' stage matrix (not symmetric; fvi_lobatto.cpp) and by the midpoint
 // schemes' band backend when J is not positive definite (symmetric_factor.cpp).
@@ -8,9 +9,12 @@
 // Why not dgbtrs: it takes each column through a level-2 BLAS call (dger for L, dtbsv for U); with
 // Debian's reference BLAS those calls on columns of 3–6 entries were 30 % of an fvi-lobatto3 step
 // of the β-FPUT chain at d = 1000 (perf), and the step ran 1.2–1.6× slower than with Eigen's
-// sparse LU (bench/RESULTS.md). Here L's multipliers (kl per column) and U's columns (diagonal
-// upwards) are copied contiguously after dgbtrf, U's band only ku widened by the farthest row
-// interchange (kl + ku at most): a solve streams two dense arrays.
+// sparse LU (bench/RESULTS.md). Here L's multipliers (kl per column) and D⁻¹U's columns (diagonal
+// upwards; D = diag(U), whose reciprocals are kept) are copied contiguously after dgbtrf, U's band
+// only ku widened by the farthest row interchange (kl + ku at most): a solve streams two dense
+// arrays. Without interchanges and for the bands of chains' Lobatto stage systems ((kl, ku) =
+// (1, 3), (2, 4), (1, 1), (2, 2)) the substitutions keep the next values in registers (band_lu.cpp,
+// SlidingSolve).
 //
 // All storage is sized at construction: factor() and solve_in_place() do not allocate.
 #pragma once
@@ -53,7 +57,9 @@ class BandLu {
   std::vector<double> band_;
   std::vector<int> pivots_;           // dgbtrf's, 1-based
   std::vector<double> packed_lower_;  // L's multipliers, kl per column
-  std::vector<double> packed_upper_;  // U's columns from the diagonal up, kl + ku + 1 per column
+  std::vector<double> packed_upper_;  // D⁻¹U's columns from the diagonal up, kl + ku + 1 per column
+  std::vector<double> reciprocal_;  // D⁻¹: 1 / U(j, j)
+  bool pivoted_ = false;            // any row interchange in the current factor
 };
 
 }  // namespace fracvi::internal
