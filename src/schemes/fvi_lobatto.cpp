@@ -757,11 +757,14 @@ void LobattoStepper::stage_forces(Blocks& b, int first, int last) const {
 }
 
 void LobattoStepper::subtract_polynomial(Blocks& b) const {
-  b.tilde = b.stages;
-  if (!split_) return;
+  if (!split_) {
+    b.tilde = b.stages;
+    return;
+  }
+  // One pass per stage, the roundings of x − x_0 and then − τ v_0 (as two in-place passes made).
   for (int a = 0; a < s_; ++a) {
-    b.tilde.col(a) -= problem_.x0;
-    b.tilde.col(a) -= (b.times(a) - problem_.t0) * problem_.v0;
+    const double tau = b.times(a) - problem_.t0;
+    b.tilde.col(a) = (b.stages.col(a) - problem_.x0) - tau * problem_.v0;
   }
 }
 
