@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstddef>
 #include <random>
+#include <string>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -547,17 +548,22 @@ TEST(TeamChooser, FastBlockHistoryRunAheadSplitsAndCheckpointsDoNotChangeTheSums
       one->set_threads(1);
       run(*one, 0, pushes, reference, &one_writer);
     }
-    for (const int threads : {1, 2}) {
-      const auto restored = make_fast_block_history(quadrature, d, 1 << 12);
-      restored->set_threads(threads);
-      StateReader reader(one_writer.bytes(), "test state");
-      restored->visit_state(reader);
-      reader.finish();
-      Eigen::MatrixXd rest = reference;
-      run(*restored, saved_after, pushes, rest, nullptr);
-      EXPECT_TRUE(bitwise_equal(rest, reference))
-          << "s = " << s << ", one thread's state restored on " << threads << " thread(s)";
-    }
+    // A saved state restored on one thread and on two continues with the reference's sums.
+    auto continues_like_the_reference = [&](const StateWriter& saved, const Eigen::MatrixXd& before,
+                                            const std::string& what) {
+      for (const int threads : {1, 2}) {
+        const auto restored = make_fast_block_history(quadrature, d, 1 << 12);
+        restored->set_threads(threads);
+        StateReader reader(saved.bytes(), "test state");
+        restored->visit_state(reader);
+        reader.finish();
+        Eigen::MatrixXd rest = before;
+        run(*restored, saved_after, pushes, rest, nullptr);
+        EXPECT_TRUE(bitwise_equal(rest, reference))
+            << "s = " << s << ", " << what << ", restored on " << threads << " thread(s)";
+      }
+    };
+    continues_like_the_reference(one_writer, reference, "one thread's state");
     const std::vector<Eigen::Index> fixed = {1, 64, 333, 699, 700, 5000};
     for (const Eigen::Index rows :
          {Eigen::Index{-1}, Eigen::Index{0}, Eigen::Index{1}, Eigen::Index{333}}) {
@@ -574,17 +580,7 @@ TEST(TeamChooser, FastBlockHistoryRunAheadSplitsAndCheckpointsDoNotChangeTheSums
       EXPECT_TRUE(bitwise_equal(out, reference)) << "s = " << s << ", run-ahead rows " << rows;
       EXPECT_GE(two.run_ahead_rows(), 1);
       EXPECT_LE(two.run_ahead_rows(), d);
-      for (const int threads : {1, 2}) {
-        const auto restored = make_fast_block_history(quadrature, d, 1 << 12);
-        restored->set_threads(threads);
-        StateReader reader(writer.bytes(), "test state");
-        restored->visit_state(reader);
-        reader.finish();
-        Eigen::MatrixXd rest = out;
-        run(*restored, saved_after, pushes, rest, nullptr);
-        EXPECT_TRUE(bitwise_equal(rest, reference))
-            << "s = " << s << ", rows " << rows << ", restored on " << threads << " thread(s)";
-      }
+      continues_like_the_reference(writer, out, "rows " + std::to_string(rows));
       two.clear();
       Eigen::MatrixXd again(d, pushes * s);
       run(two, 0, pushes, again, nullptr);

@@ -93,8 +93,9 @@ class FastHistory final : public History, private internal::RunAheadJob {
   /// of freedom over OpenMP threads. Below kParallelWork multiply–adds per step one thread does
   /// everything (a parallel region costs about a microsecond) — but a team of two, the run-ahead
   /// thread, from kRunAheadWork. A push that one thread runs alone, with no thread running the next
-  /// one, runs the next three pushes' recursions in the same pass over the state (the same
-  /// numbers; a quarter of the state's memory traffic) and leaves the next push run ahead.
+  /// one, runs the recursions and older windows of the next three pushes in the same pass over the
+  /// state (one when n0 is not a multiple of 4; fast_history.cpp) — the same numbers, a quarter
+  /// of the state's memory traffic — and those pushes then run as run ahead.
   void set_threads(int threads) override;
   /// Rows [0, rows) of each next push go to the run-ahead thread of a team of two, and the caller
   /// runs the rest right after posting them (fast_history.cpp). 0 (the default): balanced by timing
