@@ -495,13 +495,16 @@ TEST(FastHistory, OneDegreeOfFreedomCheckpointsItsRecursionsInOrder) {
   }
 }
 
-// A push that one thread runs alone runs the recursions of up to three later pushes in the same
-// pass (fast_history.cpp, recursion_block_steps) — as many as the window n0 allows, since push
-// k + s reads x̃_{k+s−n0}. (1) With windows of 2 and 3 (passes of 2 and 3 pushes) a row's sums are
-// bit for bit those of the d = 3 history, which runs push by push (push_rows_across_terms).
-// (2) A checkpoint taken after any push of the cycle — the next push's tail formed, and 2, 1 or
-// 0 later pushes' tails ("fast.later") — restores to a history that continues bit for bit like
-// the uninterrupted one. (3) A "fast.later" that the state cannot have is refused.
+// A push that one thread runs alone runs the recursions and older windows of up to three later
+// pushes in the same pass (fast_history.cpp, recursion_block_steps) — as many as the window n0
+// allows: two for n0 not a multiple of 4, four otherwise. (1) With windows of 2 and 3 a row's sums
+// are bit for bit those of the d = 3 history, which runs push by push (push_rows_across_terms);
+// with windows of 4 and 8 (passes of four; the d = 3 path does not reproduce the large kernels'
+// roundings at n0 = 4 even push by push), one thread's sums are bit for bit those of a team of
+// two, whose second thread runs one push at a time. (2) A checkpoint taken after any push of the
+// cycle — the next push's tail formed, and 2, 1 or 0 later pushes' tails ("fast.later") —
+// restores to a history that continues bit for bit like the uninterrupted one. (3) A "fast.later"
+// that the state cannot have is refused.
 class LaterOverride final : public StateArchive {
  public:
   LaterOverride(StateArchive& inner, std::size_t later) : inner_(inner), later_(later) {}
@@ -554,6 +557,28 @@ TEST(FastHistory, PassesOfSeveralPushesKeepEveryPushsNumbers) {
       ASSERT_TRUE((s_large.head(3).array() == s_small.array()).all())
           << "n0 = " << window << ", k = " << k;
     }
+  }
+
+  for (const std::size_t window : {4, 8}) {
+    const Eigen::Index wide = 1200;  // wide (K + n0) ≥ kRunAheadWork: two threads run ahead
+    const Eigen::MatrixXd rows = rough_sequence(300, wide, 43u);
+    ExponentialFitOptions o;
+    o.order = 1.5;
+    o.max_lag = 4096;
+    o.window = window;
+    const auto fit = shared_exponential_fit(o);
+    FastHistory one(fit, wide, 300), two(fit, wide, 300);
+    one.set_threads(1);
+    two.set_threads(2);
+    Eigen::VectorXd s_one(wide), s_two(wide);
+    for (Eigen::Index k = 0; k < 300; ++k) {
+      one.push(rows.col(k));
+      two.push(rows.col(k));
+      one.sum(s_one);
+      two.sum(s_two);
+      ASSERT_TRUE((s_one.array() == s_two.array()).all()) << "n0 = " << window << ", k = " << k;
+    }
+    EXPECT_GT(two.report().threads.team_pushes, 0u);
   }
 
   const Eigen::Index d = 8;
