@@ -415,8 +415,8 @@ class StageMatrix {
     }
     if (kind_ == LinearSolver::kBanded) {
       // Stage-major (d × (s − 1), column m − 1 = stage m) to interleaved ((s − 1) × d): a
-      const Eigen::Index stages = s_ - 1;
       // transpose (with the stages reversed: reversed_).
+      const Eigen::Index stages = s_ - 1;
       const Eigen::Map<const Eigen::MatrixXd> stage_major(rhs.data(), d_, stages);
       Eigen::Map<Eigen::MatrixXd> by_dof(scratch.data(), stages, d_);
       if (reversed_) {

@@ -69,11 +69,12 @@ namespace {
 // The solve's two substitutions are chains of dependent operations (each x_j waits for the
 // update from x_{j−1}, or x_{j+1} backwards): plain loops over x pay a store and a reload on that
 // chain per entry, ≈ 12–15 ns per unknown (kl = ku = 3, n = 2000: 30 µs a solve). For the bands
-// of the Lobatto stage systems of chains (b = 1) — the x-step's has kl = s − 2, ku = s and no row
-// interchanges (s = 3: (1, 3), s = 4: (2, 4)); (1, 1) and (2, 2) for an on-site coupling only —
-// SlidingSolve keeps the next KL (forwards) or UB (backwards) partial values in registers, so
-// only the arithmetic remains on the chain. (The mirror's y-step has kl = s, ku = s − 2 and
-// interchanges every other row: the plain loops.)
+// of the Lobatto stage systems of chains (b = 1) in the stage order StageMatrix chooses so that
+// they need no row interchange (fvi_lobatto.cpp) — (kl, ku) = (s − 2, s): (1, 3) for s = 3,
+// (2, 4) for s = 4, in the x-step and the mirror's y-step; (1, 1) and (2, 2) for an on-site
+// coupling only — SlidingSolve keeps the next KL (forwards) or UB (backwards) partial values in
+// registers, so only the arithmetic remains on the chain. Factors with interchanges take the plain
+// loops.
 template <int KL, int UB>
 struct SlidingSolve {
   // Forward: y = L⁻¹x (no interchanges), then D⁻¹y into x. Backward: x ← (D⁻¹U)⁻¹x.
