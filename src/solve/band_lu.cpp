@@ -48,14 +48,11 @@ bool BandLu::factor() noexcept {
   // (the division's latency was on the solve's dependency chain: solve_in_place below).
   const Eigen::Index kv = kl_ + ku_, ub = factor_ku_;
   pivoted_ = false;
-  for (Eigen::Index j = 0; j < n_; ++j) {
+  for (Eigen::Index j = 0; j < n_; ++j) {  // ascending: 1/U(j − r, j − r) is known at column j
     const double* column = band_.data() + j * rows_;
     std::copy_n(column + kv + 1, kl_, packed_lower_.data() + j * kl_);
     reciprocal_[static_cast<std::size_t>(j)] = 1.0 / column[kv];
     pivoted_ = pivoted_ || pivots_[static_cast<std::size_t>(j)] - 1 != j;
-  }
-  for (Eigen::Index j = 0; j < n_; ++j) {
-    const double* column = band_.data() + j * rows_;
     double* packed = packed_upper_.data() + j * (ub + 1);
     packed[0] = 1.0;                        // D⁻¹U's diagonal (not read)
     for (Eigen::Index r = 1; r <= ub; ++r)  // (D⁻¹U)(j − r, j) = U(j − r, j) / U(j − r, j − r)
@@ -71,10 +68,10 @@ namespace {
 // chain per entry, ≈ 12–15 ns per unknown (kl = ku = 3, n = 2000: 30 µs a solve). For the bands
 // of the Lobatto stage systems of chains (b = 1) in the stage order StageMatrix chooses so that
 // they need no row interchange (fvi_lobatto.cpp) — (kl, ku) = (s − 2, s): (1, 3) for s = 3,
-// (2, 4) for s = 4, in the x-step and the mirror's y-step; (1, 1) and (2, 2) for an on-site
-// coupling only — SlidingSolve keeps the next KL (forwards) or UB (backwards) partial values in
-// registers, so only the arithmetic remains on the chain. Factors with interchanges take the plain
-// loops.
+// (2, 4) for s = 4, in the x-step and the mirror's y-step (measured; also with the springs'
+// stiffness at 0, whose Hessian keeps its tridiagonal pattern) — SlidingSolve keeps the next KL
+// (forwards) or UB (backwards) partial values in registers, so only the arithmetic remains on the
+// chain. Other bands, and factors with interchanges, take the plain loops.
 template <int KL, int UB>
 struct SlidingSolve {
   // Forward: y = L⁻¹x (no interchanges), then D⁻¹y into x. Backward: x ← (D⁻¹U)⁻¹x.
@@ -138,10 +135,6 @@ bool sliding_solve(Eigen::Index n, Eigen::Index kl, Eigen::Index ub, const doubl
     SlidingSolve<1, 3>::run(n, lower, upper, reciprocal, x);
   } else if (kl == 2 && ub == 4) {
     SlidingSolve<2, 4>::run(n, lower, upper, reciprocal, x);
-  } else if (kl == 1 && ub == 1) {
-    SlidingSolve<1, 1>::run(n, lower, upper, reciprocal, x);
-  } else if (kl == 2 && ub == 2) {
-    SlidingSolve<2, 2>::run(n, lower, upper, reciprocal, x);
   } else {
     return false;
   }

@@ -83,12 +83,12 @@ TEST(BandLu, SolvesLikeDgbtrsAndDenseLu) {
     EXPECT_LE((x - dense).norm() / dense.norm(), 1e-15 * condition);
     EXPECT_LE((x - reference).norm() / reference.norm(), 1e-15 * condition);
     if (lu.factor_upper_bandwidth() == shape.ku && shape.kl >= 1 && shape.kl <= 2 &&
-        (shape.ku == shape.kl || shape.ku == shape.kl + 2)) {
+        shape.ku == shape.kl + 2) {
       ++unpivoted_chain_bands;
     }
   }
   EXPECT_GE(interchanged, 3);           // the packed U really was widened on these matrices
-  EXPECT_GE(unpivoted_chain_bands, 6);  // and the register path ran (no interchange)
+  EXPECT_GE(unpivoted_chain_bands, 4);  // and the register path ran: (1, 3), (2, 4), no interchange
 }
 
 // Refactoring new values in the same storage (a Newton iteration) gives the new solution: the

@@ -13,8 +13,7 @@
 // upwards; D = diag(U), whose reciprocals are kept) are copied contiguously after dgbtrf, U's band
 // only ku widened by the farthest row interchange (kl + ku at most): a solve streams two dense
 // arrays. Without interchanges and for the bands of chains' Lobatto stage systems ((kl, ku) =
-// (1, 3), (2, 4), (1, 1), (2, 2)) the substitutions keep the next values in registers (band_lu.cpp,
-// SlidingSolve).
+// (1, 3), (2, 4)) the substitutions keep the next values in registers (band_lu.cpp, SlidingSolve).
 //
 // All storage is sized at construction: factor() and solve_in_place() do not allocate.
 #pragma once
