@@ -66,6 +66,10 @@ void validate(const IntegratorOptions& options) {
     throw ValidationError("options.threads = " + std::to_string(options.threads) +
                           " must be >= 0 (0 = all cores)");
   }
+  if (options.row_split_from < 1) {
+    throw ValidationError("options.row_split_from = " + std::to_string(options.row_split_from) +
+                          " must be >= 1 (the dimension from which a step is split by rows)");
+  }
   if (!parse_linear_solver(to_string(options.linear_solver))) {
     throw ValidationError("options.linear_solver has an unknown value");
   }

@@ -354,7 +354,8 @@ nlohmann::json make_summary(const ProblemSpec& spec, const Solution& s) {
         {"team_pushes", s.history_threads.team_pushes},
         {"decisions", s.history_threads.decisions},
         {"team_won", s.history_threads.team_won},
-        {"team_dropped", s.history_threads.team_dropped}}},
+        {"team_dropped", s.history_threads.team_dropped},
+        {"whole_steps", s.history_threads.whole_steps}}},
       {"save_every", s.save_every},
       {"output_times", s.output_t.size()},
       {"events", events_json(s)},
@@ -468,9 +469,11 @@ void read_summary(const nlohmann::json& summary, Solution& s, const std::string&
     const std::size_t team = r.count(t, "team");
     if (team < 1 || team > 4096)
       r.fail("team", "= " + std::to_string(team) + " is not in [1, 4096]");
-    s.history_threads = {static_cast<int>(team),    r.flag(t, "measured"),   r.count(t, "pushes"),
+    s.history_threads = {static_cast<int>(team), r.flag(t, "measured"), r.count(t, "pushes"),
                          r.count(t, "team_pushes"), r.count(t, "decisions"), r.count(t, "team_won"),
-                         r.count(t, "team_dropped")};
+                         r.count(t, "team_dropped"),
+                         // absent in summaries written before the step split by rows
+                         t.contains("whole_steps") && r.flag(t, "whole_steps")};
   }
   s.save_every = r.count(summary, "save_every");
   if (s.save_every < 1) r.fail("save_every", "= 0 is not a storage stride (at least 1)");

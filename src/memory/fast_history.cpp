@@ -480,32 +480,43 @@ void FastHistory::run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leavi
 
 void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   assert(size_ < capacity_ && x_tilde.size() == ring_.rows());
-  const auto n0 = static_cast<std::size_t>(window_);
-  const auto slot = static_cast<Eigen::Index>(size_ % n0);
-  const bool recurse = size_ >= n0;
-  // After the push the last n0 values x̃_{k−n0+1} … x̃_k are the ring columns first, first + 1, …
-  // (mod n0) with first = (k + 1) mod n0; before k = n0 − 1 the missing ones are the zeros the
-  // ring was cleared to.
-  const auto first = static_cast<Eigen::Index>((size_ + 1) % n0);
-  const Eigen::Index terms = state_.cols(), d = ring_.rows();
-  // One pass per block of degrees of freedom, all in one parallel region (each region costs a
-  // barrier): (1) x̃_{k−n0} leaves the window (it sits in the slot x̃_k is about to take) and enters
-  // every recursion, Y_j ← e^{−λ_j} Y_j + x̃_{k−n0}, and the tail Σ_j w_j Y_j is formed — unless
-  // they were run ahead; (2) x̃_k enters the ring; (3) the sum = window · exact weights + tail,
-  // returned by sum(). Y_j is column j of the d × K state, so the recursions run along the degrees
-  // of freedom (long contiguous vectors).
-  const double* entering = x_tilde.data();
+  const Eigen::Index d = ring_.rows();
   if (d < kAcrossTermsBelow) {
     // Far below kParallelWork: one block on this thread, without the team's bookkeeping (a third
     // of a d = 1 push's instructions went there, callgrind); never run ahead (no second thread,
     // and visit_state refuses a small system's checkpoint that says so).
-    push_rows_across_terms(block(0, d, recurse ? terms : 0, slot, first, entering, tail_column_));
+    const auto n0 = static_cast<std::size_t>(window_);
+    push_rows_across_terms(
+        block(0, d, size_ >= n0 ? state_.cols() : 0, static_cast<Eigen::Index>(size_ % n0),
+              static_cast<Eigen::Index>((size_ + 1) % n0), x_tilde.data(), tail_column_));
     run_ahead_.count_single_push();
     ++size_;
     return;
   }
+  begin_row_push(x_tilde.data());
+  // A team of two runs the next push ahead (the caller only makes the window's last addition); a
+  // larger team splits the rows.
+  internal::for_blocks(d, pending_.turn.split,
+                       [this](Eigen::Index lo, Eigen::Index hi) { push_rows(lo, hi); });
+  end_row_push();
+}
+
+bool FastHistory::pushes_rows() const {
+  return ring_.rows() >= kAcrossTermsBelow && run_ahead_.chooser().team() == 1;
+}
+
+void FastHistory::begin_row_push(const double* x_tilde) {
+  assert(size_ < capacity_ && ring_.rows() >= kAcrossTermsBelow);
+  const auto n0 = static_cast<std::size_t>(window_);
+  RowPush& p = pending_;
+  p.entering = x_tilde;
+  p.slot = static_cast<Eigen::Index>(size_ % n0);
+  // After the push the last n0 values x̃_{k−n0+1} … x̃_k are the ring columns first, first + 1, …
+  // (mod n0) with first = (k + 1) mod n0; before k = n0 − 1 the missing ones are the zeros the
+  // ring was cleared to.
+  p.first = static_cast<Eigen::Index>((size_ + 1) % n0);
   // The next push's recursions ran in an earlier pass (later_ > 0): no thread runs them again.
-  const internal::RunAhead::Turn turn = run_ahead_.begin(size_, n0, capacity_, later_ > 0);
+  p.turn = run_ahead_.begin(size_, n0, capacity_, later_ > 0);
   // One thread runs this push's recursions and no thread runs the next push's: run the next
   // pushes' too, up to kPassSteps in all, in one pass over the state (recursion_block_steps) — push
   // k + s's leaving value x̃_{k+s−n0} is in ring column (k + s) mod n0 until push k + s, and its
@@ -513,52 +524,64 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
   // the ring, while the ring's rows are in cache. Push k + s's older window ends with x̃_{k+s−g},
   // g = n0 − newest_start(n0) (4 when n0 is a multiple of 4, else 1): so a pass covers at most
   // g + 1 pushes. Each later push then runs as one run ahead (the same numbers), only adding x̃.
-  const bool run_recursions = recurse && !turn.ahead;
+  p.run_recursions = size_ >= n0 && !p.turn.ahead;
   const auto gap = static_cast<std::size_t>(window_ - newest_start(window_));
-  const int steps = run_recursions && turn.split == 1 && !turn.post_next
-                        ? static_cast<int>(std::min({static_cast<std::size_t>(kPassSteps),
-                                                     capacity_ - size_, n0, gap + 1}))
-                        : 1;
-  const Eigen::Index own = tail_column_;
-  const auto column = [&](int s) { return (own + s) % kPassSteps; };
-  auto update = [&](Eigen::Index lo, Eigen::Index hi) {
-    for (Eigen::Index b = lo; b < hi; b += kBlock) {
-      const Eigen::Index n = std::min(kBlock, hi - b);
-      const internal::FastHistoryBlock rows =
-          block(b, n, run_recursions ? terms : 0, slot, first, entering, own);
-      if (steps > 1) {
-        const double* leaving[kPassSteps];
-        double* tails[kPassSteps];
-        for (int s = 0; s < steps; ++s) {
-          leaving[s] = ring_.col(static_cast<Eigen::Index>((size_ + s) % n0)).data() + b;
-          tails[s] = tails_.col(column(s)).data() + b;
-        }
-        recursion_block_steps(rows, steps, leaving, tails);
-        older_window_block(rows);
-      } else if (!turn.ahead) {
-        recursion_block(rows);  // with no recursions yet (terms = 0), a zero tail
-        older_window_block(rows);
+  p.steps = p.run_recursions && p.turn.split == 1 && !p.turn.post_next
+                ? static_cast<int>(std::min(
+                      {static_cast<std::size_t>(kPassSteps), capacity_ - size_, n0, gap + 1}))
+                : 1;
+  p.own = tail_column_;
+}
+
+void FastHistory::push_rows(Eigen::Index lo, Eigen::Index hi) {
+  // One pass per block of degrees of freedom: (1) x̃_{k−n0} leaves the window (it sits in the slot
+  // x̃_k is about to take) and enters every recursion, Y_j ← e^{−λ_j} Y_j + x̃_{k−n0}, and the
+  // tail Σ_j w_j Y_j is formed — unless they were run ahead; (2) x̃_k enters the ring; (3) the
+  // sum = window · exact weights + tail, returned by sum(). Y_j is column j of the d × K state, so
+  // the recursions run along the degrees of freedom (long contiguous vectors). Each row's
+  // operations do not depend on [lo, hi).
+  const RowPush& p = pending_;
+  const auto n0 = static_cast<std::size_t>(window_);
+  const Eigen::Index terms = state_.cols();
+  const auto column = [&](int s) { return (p.own + s) % kPassSteps; };
+  for (Eigen::Index b = lo; b < hi; b += kBlock) {
+    const Eigen::Index n = std::min(kBlock, hi - b);
+    const internal::FastHistoryBlock rows =
+        block(b, n, p.run_recursions ? terms : 0, p.slot, p.first, p.entering, p.own);
+    if (p.steps > 1) {
+      const double* leaving[kPassSteps];
+      double* tails[kPassSteps];
+      for (int s = 0; s < p.steps; ++s) {
+        leaving[s] = ring_.col(static_cast<Eigen::Index>((size_ + s) % n0)).data() + b;
+        tails[s] = tails_.col(column(s)).data() + b;
       }
-      newest_block(rows);
-      // The later pushes' older windows (push k + s's starts at ring column (k + s + 1) mod n0),
-      // now that x̃_k is in these rows of the ring.
-      for (int s = 1; s < steps; ++s) {
-        const auto window_first = static_cast<Eigen::Index>((size_ + 1 + s) % n0);
-        older_window_block(block(b, n, terms, slot, window_first, nullptr, column(s)));
-      }
+      recursion_block_steps(rows, p.steps, leaving, tails);
+      older_window_block(rows);
+    } else if (!p.turn.ahead) {
+      recursion_block(rows);  // with no recursions yet (terms = 0), a zero tail
+      older_window_block(rows);
     }
-  };
-  // A team of two runs the next push ahead (the caller only makes the window's last addition); a
-  // larger team splits the rows.
-  internal::for_blocks(d, turn.split, update);
+    newest_block(rows);
+    // The later pushes' older windows (push k + s's starts at ring column (k + s + 1) mod n0),
+    // now that x̃_k is in these rows of the ring.
+    for (int s = 1; s < p.steps; ++s) {
+      const auto window_first = static_cast<Eigen::Index>((size_ + 1 + s) % n0);
+      older_window_block(block(b, n, terms, p.slot, window_first, nullptr, column(s)));
+    }
+  }
+}
+
+void FastHistory::end_row_push() {
+  const RowPush& p = pending_;
   ++size_;
-  if (steps > 1) later_ = static_cast<std::size_t>(steps - 1);  // it was 0: this push not ahead
-  const bool next_ran = later_ > 0;                             // the next push's tail is complete
+  if (p.steps > 1) later_ = static_cast<std::size_t>(p.steps - 1);  // it was 0: this push not ahead
+  const bool next_ran = later_ > 0;  // the next push's tail is complete
   if (next_ran) {
-    tail_column_ = column(1);
+    tail_column_ = (p.own + 1) % kPassSteps;
     --later_;
   }
-  run_ahead_.end(turn, first, static_cast<Eigen::Index>((size_ + 1) % n0));
+  run_ahead_.end(p.turn, p.first,
+                 static_cast<Eigen::Index>((size_ + 1) % static_cast<std::size_t>(window_)));
   if (next_ran) run_ahead_.set_ahead(true);
 }
 

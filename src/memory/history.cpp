@@ -109,6 +109,18 @@ void LocalHistory::visit_state(StateArchive& archive) {
   archive.dense("local.window", window_);
 }
 
+void History::begin_row_push(const double*) {
+  throw std::logic_error(std::string(kind()) + " history: no push split by rows");
+}
+
+void History::push_rows(Eigen::Index, Eigen::Index) {
+  throw std::logic_error(std::string(kind()) + " history: no push split by rows");
+}
+
+void History::end_row_push() {
+  throw std::logic_error(std::string(kind()) + " history: no push split by rows");
+}
+
 std::optional<HistoryKind> parse_history_kind(std::string_view name) {
   if (name == "auto") return HistoryKind::kAuto;
   if (name == "direct") return HistoryKind::kDirect;

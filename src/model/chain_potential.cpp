@@ -215,30 +215,35 @@ double ChainPotential::value(const Eigen::Ref<const Eigen::VectorXd>& x, double)
   });
 }
 
-void ChainPotential::gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double,
+void ChainPotential::gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
                               Eigen::Ref<Eigen::VectorXd> g) const {
+  internal::for_blocks(
+      options_.dimension, chain_threads(options_),
+      [&](Eigen::Index lo, Eigen::Index hi) { gradient_rows(x, t, g.data(), lo, hi); });
+}
+
+void ChainPotential::gradient_rows(const Eigen::Ref<const Eigen::VectorXd>& x, double, double* g,
+                                   Eigen::Index lo, Eigen::Index hi) const {
   const Spring v{options_.stiffness, options_.cubic, options_.quartic};
   const Eigen::Index d = options_.dimension;
   const ChainBoundary boundary = options_.boundary;
   const double c = options_.onsite;
-  internal::for_blocks(d, chain_threads(options_), [&](Eigen::Index lo, Eigen::Index hi) {
-    by_position(
-        lo, hi, d,
-        [&](Eigen::Index i) {
-          const Neighbours n = neighbours(x, i, d, boundary);
-          double gi = c * x[i];
-          if (n.has_left) gi += v.force(x[i] - n.left);
-          if (n.has_right) gi -= v.force(n.right - x[i]);
-          g[i] = gi;
-        },
-        [&](Eigen::Index first, Eigen::Index last) {
-          if (v.linear()) {
-            linear_chain_gradient_interior(x.data(), g.data(), first, last, v, c);
-          } else {
-            chain_gradient_interior(x.data(), g.data(), first, last, v, c);
-          }
-        });
-  });
+  by_position(
+      lo, hi, d,
+      [&](Eigen::Index i) {
+        const Neighbours n = neighbours(x, i, d, boundary);
+        double gi = c * x[i];
+        if (n.has_left) gi += v.force(x[i] - n.left);
+        if (n.has_right) gi -= v.force(n.right - x[i]);
+        g[i] = gi;
+      },
+      [&](Eigen::Index first, Eigen::Index last) {
+        if (v.linear()) {
+          linear_chain_gradient_interior(x.data(), g, first, last, v, c);
+        } else {
+          chain_gradient_interior(x.data(), g, first, last, v, c);
+        }
+      });
 }
 
 std::vector<Potential::HessianEntry> ChainPotential::hessian_pattern() const {

@@ -15,6 +15,11 @@ std::string shape(const Eigen::MatrixXd& m) {
 
 }  // namespace
 
+void Potential::gradient_rows(const Eigen::Ref<const Eigen::VectorXd>&, double, double*,
+                              Eigen::Index, Eigen::Index) const {
+  throw std::logic_error("Potential::gradient_rows called on a potential without it");
+}
+
 void Potential::hessian_values(const Eigen::Ref<const Eigen::VectorXd>&, double,
                                std::span<double>) const {
   throw std::logic_error(

@@ -1,12 +1,16 @@
 #include "cq_midpoint_stepper.hpp"
 
+#include "fracvi/internal/parallel.hpp"
 #include "fracvi/internal/vectorize.hpp"
 #include "fracvi/schemes/history_budget.hpp"
 #include "fracvi/solve/vector_passes.hpp"
 #include "mirror_run.hpp"
 #include "power_differences.hpp"
 
+#include <algorithm>
+#include <atomic>
 #include <boost/math/special_functions/gamma.hpp>
+#include <chrono>
 #include <cmath>
 #include <limits>
 
@@ -90,6 +94,23 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
       root_mass_ = health_weights(problem.model.mass);
   }
   g_mid_.setZero(d_);
+  // The step split by rows: the fused passes, the fast history pushed by rows (one thread in
+  // it: the team is the step's), a linear solve whose residual goes by rows.
+  by_rows_ = fused_passes_ && d_ >= options.row_split_from &&
+             memory_start_ == MemoryStart::kPaperStart && use_history_ &&
+             options.start != StartValue::kExplicitEuler && newton_.solves_by_rows();
+  if (by_rows_) {
+    history_->set_threads(1);
+    by_rows_ = history_->pushes_rows();
+    if (!by_rows_) history_->set_threads(options.threads);
+  }
+  if (by_rows_) {
+    // Parts of whole cache lines (64 bytes: the vector kernels' and the history's row blocks).
+    for (int p = 0; p < kRowParts; ++p) part_bounds_[p] = d_ * p / kRowParts / 8 * 8;
+    part_bounds_[kRowParts] = d_;
+    row_team_.configure(options.threads, std::min(team_size(options.threads, d_, 1), kRowParts));
+    start_threads(row_team_.team());
+  }
 
   // The state at k = 0: x_0, v_0, p_0 = M v_0 and the damping force F_0.
   x_cur_ = problem.x0;
@@ -165,85 +186,93 @@ Status CqMidpointStepper::advance() {
   const bool euler_start = k == 0 && options_.start == StartValue::kExplicitEuler;
   // The fused passes below form p⁻_{k+1} from Δ_k (not the Euler start's).
   const bool fused = fused_passes_ && !euler_start;
-  if (euler_start) {
-    // Negative control only: x_1 = x_0 + h v_0, momentum from its discrete Legendre transform.
-    dx_ = h_ * problem_.v0;
-    mid_ = xk + 0.5 * dx_;
-    newton_.effective_gradient(mid_, t_half, f_ptr, grad_);
-    if (newton_.has_state_force()) {
-      newton_.state_force(mid_, dx_, t_half, g_mid_);
-      grad_ -= g_mid_;
-    }
-    mass_.multiply(dx_, p_minus_);
-    p_minus_ *= 1.0 / h_;
-    p_minus_ -= (0.5 * h_) * grad_;
-    set_iterations(0);
-  } else {
-    // p⁺_k = p_k − (h/2) F_k, then M Δ_k + (h²/2)∇U_f(x_k + Δ_k/2, t_{k+½}) = h p⁺_k for the
-    // increment Δ_k = x_{k+1} − x_k. Predictor: the previous increment (h v_0 at k = 0).
-    // p⁺_k and the right-hand side h p⁺_k in one pass (the same roundings as two).
-    const double impulse = (k == 0 ? start_force_weight_ : 0.5) * h_;
-    start_momentum_pass(p_.data(), force_.data(), impulse, h_, p_plus_.data(), rhs_.data(), d_);
-    if (k == 0) dx_ = h_ * problem_.v0;
-    const NewtonReport report = newton_.solve(xk, t_half, rhs_, f_ptr, dx_);
-    if (const Status s = newton_outcome(report, "M + (h^2/4) Hess U"); s != Status::kSuccess)
-      return s;
-    // p⁻_{k+1} = 2MΔ_k/h − p⁺_k (the two one-sided momenta average to M Δ_k/h).
-    if (!fused) {
-      mass_.multiply(dx_, p_minus_);
-      // One pass, the same roundings as *= then −= (the element passes here and below:
-      // vector_passes.hpp; an Eigen expression's set-up costs more than its work at d = 1).
-      scale_and_subtract_pass(2.0 / h_, p_plus_.data(), p_minus_.data(), d_);
-    }
-  }
-  // x_{k+1} and its check in one pass; with a diagonal M, p⁻_{k+1} and x̃_{k+1} in the same pass.
-  // From kVectorPassesFrom on, the same pass sums the health check's ‖x_{k+1}‖²_M (step_sums()).
   const bool vector_sums = fused && d_ >= kVectorPassesFrom;
+  const bool vector_dots = diagnostics_ && d_ >= kVectorPassesFrom;
   double mass_squares = 0.0;
-  const bool position_finite =
-      fused ? new_position_pass(mass_solver_.diagonal()->data(), mass_solver_.unit_mass(),
+  const double* damping_sum = sum_.data();  // Σ c_m x̃_{k+1−m}, in units of R h^{−2α}
+  MomentumPass momentum;
+  if (by_rows_) {
+    if (const Status s = step_by_rows(f_ptr, momentum, mass_squares); s != Status::kSuccess)
+      return s;
+    damping_sum = history_->kept_sum();
+  } else {
+    if (euler_start) {
+      // Negative control only: x_1 = x_0 + h v_0, momentum from its discrete Legendre transform.
+      dx_ = h_ * problem_.v0;
+      mid_ = xk + 0.5 * dx_;
+      newton_.effective_gradient(mid_, t_half, f_ptr, grad_);
+      if (newton_.has_state_force()) {
+        newton_.state_force(mid_, dx_, t_half, g_mid_);
+        grad_ -= g_mid_;
+      }
+      mass_.multiply(dx_, p_minus_);
+      p_minus_ *= 1.0 / h_;
+      p_minus_ -= (0.5 * h_) * grad_;
+      set_iterations(0);
+    } else {
+      // p⁺_k = p_k − (h/2) F_k, then M Δ_k + (h²/2)∇U_f(x_k + Δ_k/2, t_{k+½}) = h p⁺_k for the
+      // increment Δ_k = x_{k+1} − x_k. Predictor: the previous increment (h v_0 at k = 0).
+      // p⁺_k and the right-hand side h p⁺_k in one pass (the same roundings as two).
+      const double impulse = (k == 0 ? start_force_weight_ : 0.5) * h_;
+      start_momentum_pass(p_.data(), force_.data(), impulse, h_, p_plus_.data(), rhs_.data(), d_);
+      if (k == 0) dx_ = h_ * problem_.v0;
+      const NewtonReport report = newton_.solve(xk, t_half, rhs_, f_ptr, dx_);
+      if (const Status s = newton_outcome(report, "M + (h^2/4) Hess U"); s != Status::kSuccess)
+        return s;
+      // p⁻_{k+1} = 2MΔ_k/h − p⁺_k (the two one-sided momenta average to M Δ_k/h).
+      if (!fused) {
+        mass_.multiply(dx_, p_minus_);
+        // One pass, the same roundings as *= then −= (the element passes here and below:
+        // vector_passes.hpp; an Eigen expression's set-up costs more than its work at d = 1).
+        scale_and_subtract_pass(2.0 / h_, p_plus_.data(), p_minus_.data(), d_);
+      }
+    }
+    // x_{k+1} and its check in one pass; with a diagonal M, p⁻_{k+1} and x̃_{k+1} in the same pass.
+    // From kVectorPassesFrom on, the same pass sums the health check's ‖x_{k+1}‖²_M (step_sums()).
+    const bool position_finite =
+        fused
+            ? new_position_pass(mass_solver_.diagonal()->data(), mass_solver_.unit_mass(),
                                 dx_.data(), 2.0 / h_, p_plus_.data(), xk.data(), tilde_x0_.data(),
                                 static_cast<double>(k + 1) * h_, tilde_v0_.data(), p_minus_.data(),
                                 x_next_.data(), use_history_ ? x_tilde_.data() : nullptr, d_,
                                 root_mass_.data(), vector_sums ? &mass_squares : nullptr)
             : add_and_check(xk.data(), dx_.data(), x_next_.data(), d_);
-  if (!position_finite) return fail(Status::kNonFinite, "non-finite position");
+    if (!position_finite) return fail(Status::kNonFinite, "non-finite position");
 
-  // Damping force at the new point, grid momentum p_{k+1} = p⁻_{k+1} − (h/2)F_{k+1}, velocity.
-  const double* damping_sum = sum_.data();  // Σ c_m x̃_{k+1−m}, in units of R h^{−2α}
-  if (viscous_local_ && damped_) {
-    // Lemma 5.3 without a history object: Σ c_m x_{k+1−m} = x_{k+1} − x_k. Written as
-    // (−x_k) + x_{k+1}, the same floating-point operations as the direct sum (bitwise equal).
-    sum_ = x_next_ - xk;
-  } else if (damped_) {
-    if (!fused) tilde(x_next_, k + 1, x_tilde_);
-    history_->push(x_tilde_);
-    // The momentum pass reads the sum where the history keeps it (FastHistory): no copy, 80 KB a
-    // step at d = 10^4, unless P's force is added to it.
-    const double* kept = fused_passes_ && memory_start_ != MemoryStart::kTaylorSplit
-                             ? history_->kept_sum()
-                             : nullptr;
-    if (kept != nullptr) {
-      damping_sum = kept;
-    } else {
-      history_->sum(sum_);
-      if (memory_start_ == MemoryStart::kTaylorSplit)
-        add_polynomial_force(k + 1, problem_.x0, problem_.v0, sum_);
+    // Damping force at the new point, grid momentum p_{k+1} = p⁻_{k+1} − (h/2)F_{k+1}, velocity.
+    if (viscous_local_ && damped_) {
+      // Lemma 5.3 without a history object: Σ c_m x_{k+1−m} = x_{k+1} − x_k. Written as
+      // (−x_k) + x_{k+1}, the same floating-point operations as the direct sum (bitwise equal).
+      sum_ = x_next_ - xk;
+    } else if (damped_) {
+      if (!fused) tilde(x_next_, k + 1, x_tilde_);
+      history_->push(x_tilde_);
+      // The momentum pass reads the sum where the history keeps it (FastHistory): no copy, 80 KB a
+      // step at d = 10^4, unless P's force is added to it.
+      const double* kept = fused_passes_ && memory_start_ != MemoryStart::kTaylorSplit
+                               ? history_->kept_sum()
+                               : nullptr;
+      if (kept != nullptr) {
+        damping_sum = kept;
+      } else {
+        history_->sum(sum_);
+        if (memory_start_ == MemoryStart::kTaylorSplit)
+          add_polynomial_force(k + 1, problem_.x0, problem_.v0, sum_);
+      }
     }
-  }
-  // With diagonal M and R', F_{k+1}, p_{k+1}, v_{k+1} and the energy account's F·v and F·M⁻¹F
-  // (from kVectorPassesFrom on, in dot_pass's order) in one pass; for M = I, M⁻¹F_{k+1} is F_{k+1}.
-  const bool vector_dots = diagnostics_ && d_ >= kVectorPassesFrom;
-  MomentumPass momentum;
-  if (fused_passes_) {
-    momentum = new_momentum_pass(
-        force_matrix_.stored_diagonal()->data(), damping_sum, p_minus_.data(), 0.5 * h_,
-        mass_solver_.diagonal()->data(), mass_solver_.unit_mass(), force_next_.data(), p_.data(),
-        v_next_.data(), diagnostics_ && !vector_dots ? w_.data() : nullptr, vector_dots, d_);
-  } else {
-    if (damped_) force_matrix_.multiply(sum_, force_next_);
-    subtract_scaled_pass(p_minus_.data(), 0.5 * h_, force_next_.data(), p_.data(), d_);
-    mass_solver_.inverse(p_, v_next_);
+    // With diagonal M and R', F_{k+1}, p_{k+1}, v_{k+1} and the energy account's F·v and F·M⁻¹F
+    // (from kVectorPassesFrom on, in dot_pass's order) in one pass; for M = I, M⁻¹F_{k+1} is
+    // F_{k+1}.
+    if (fused_passes_) {
+      momentum = new_momentum_pass(
+          force_matrix_.stored_diagonal()->data(), damping_sum, p_minus_.data(), 0.5 * h_,
+          mass_solver_.diagonal()->data(), mass_solver_.unit_mass(), force_next_.data(), p_.data(),
+          v_next_.data(), diagnostics_ && !vector_dots ? w_.data() : nullptr, vector_dots, d_);
+    } else {
+      if (damped_) force_matrix_.multiply(sum_, force_next_);
+      subtract_scaled_pass(p_minus_.data(), 0.5 * h_, force_next_.data(), p_.data(), d_);
+      mass_solver_.inverse(p_, v_next_);
+    }
   }
 
   // Energy account (solution.hpp; start_step.md §4).
@@ -309,6 +338,156 @@ Status CqMidpointStepper::advance() {
   fv_ = fv_next;
   fw_ = fw_next;
   return Status::kSuccess;
+}
+
+// The linear step from p⁺_k to the momentum pass, rows [lo, hi) of each of kRowParts parts at a
+// time, in rounds between which every part's rows must be done: (1) p⁺_k and h p⁺_k, the
+// predictor, the midpoint; (2) the residual (the potential's gradient reads the neighbouring
+// rows' midpoints); then the linear solve, on one thread (the tridiagonal solve is bound by its
+// recurrences' latency: in two halves on two threads each half took as long as the whole, and on
+// one thread the halves took twice as long; bench/RESULTS.md); (3) the correction, x_{k+1},
+// p⁻_{k+1} and x̃_{k+1}; (4), unless some values are non-finite, the history's push and the
+// momentum pass. Every element's operations are advance()'s, so the trajectory is the same bit
+// for bit whatever the team (and as with the whole passes); the sums are formed part by part and
+// added in part order, so they too are the same for any team (and differ from the whole passes'
+// in their last bits). Each part's rows stay on one core: at d = 10^4 its share of the history's
+// state (≈ 1 MB) fits the core's L2, where the whole state did not (bench/RESULTS.md).
+Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumPass& momentum,
+                                       double& mass_squares) {
+  const std::size_t k = k_;
+  const double t_half = half_time(k);
+  const double impulse = (k == 0 ? start_force_weight_ : 0.5) * h_;
+  const double* f = forcing != nullptr ? forcing->data() : nullptr;
+  const double* m = mass_solver_.diagonal()->data();
+  const bool unit_mass = mass_solver_.unit_mass();
+  const double* root_mass = root_mass_.size() > 0 ? root_mass_.data() : nullptr;
+  const bool dots = diagnostics_;  // d ≥ kVectorPassesFrom: the momentum pass sums F·v, F·M⁻¹F
+  struct alignas(64) Part {        // a part's results, a cache line each (written by its thread)
+    bool residual_finite = false, position_finite = false;
+    CorrectionPass correction;
+    double mass_squares = 0.0;
+    MomentumPass momentum;
+  };
+  std::array<Part, kRowParts> parts{};
+  const bool factored = newton_.factor_ok();
+  // Begun before the rounds (only its bookkeeping: a step that fails before round 5 leaves the
+  // history as it was).
+  if (factored) history_->begin_row_push(x_tilde_.data());
+
+  const int threads = row_team_.measuring()
+                          ? row_team_.next_by_period(std::chrono::steady_clock::now())
+                          : row_team_.next();
+  ++row_steps_;
+  if (threads > 1) ++row_team_steps_;
+  // Thread `me` of `team` runs the parts [me P/team, (me + 1) P/team), P = kRowParts; `barrier`
+  // waits for the team.
+  auto step = [&](int me, int team, auto&& barrier) {
+    auto each = [&](auto&& rows) {
+      for (int p = me * kRowParts / team; p < (me + 1) * kRowParts / team; ++p)
+        rows(parts[p], part_bounds_[p], part_bounds_[p + 1]);
+    };
+    each([&](Part&, Eigen::Index lo, Eigen::Index hi) {
+      start_momentum_pass(p_.data() + lo, force_.data() + lo, impulse, h_, p_plus_.data() + lo,
+                          rhs_.data() + lo, hi - lo);
+      if (k == 0) {
+        for (Eigen::Index i = lo; i < hi; ++i) dx_[i] = h_ * problem_.v0[i];
+      }
+      newton_.rows_midpoint(x_cur_.data(), dx_.data(), lo, hi);
+    });
+    barrier();
+    if (!factored) return;
+    each([&](Part& part, Eigen::Index lo, Eigen::Index hi) {
+      part.residual_finite = newton_.rows_residual(t_half, f, rhs_.data(), dx_.data(), lo, hi);
+    });
+    barrier();
+    if (me == 0) newton_.solve_residual();
+    barrier();
+    each([&](Part& part, Eigen::Index lo, Eigen::Index hi) {
+      part.correction = newton_.rows_correction(x_cur_.data(), dx_.data(), lo, hi);
+      part.position_finite = new_position_pass(
+          m + lo, unit_mass, dx_.data() + lo, 2.0 / h_, p_plus_.data() + lo, x_cur_.data() + lo,
+          tilde_x0_.data() + lo, static_cast<double>(k + 1) * h_, tilde_v0_.data() + lo,
+          p_minus_.data() + lo, x_next_.data() + lo, x_tilde_.data() + lo, hi - lo,
+          root_mass != nullptr ? root_mass + lo : nullptr, &part.mass_squares);
+    });
+    barrier();
+    const bool finite = std::all_of(parts.begin(), parts.end(), [](const Part& q) {
+      return q.residual_finite && q.correction.finite && std::isfinite(q.correction.size) &&
+             q.position_finite;
+    });
+    if (!finite) return;
+    const double* sum = history_->kept_sum();
+    each([&](Part& part, Eigen::Index lo, Eigen::Index hi) {
+      history_->push_rows(lo, hi);
+      part.momentum = new_momentum_pass(force_matrix_.stored_diagonal()->data() + lo, sum + lo,
+                                        p_minus_.data() + lo, 0.5 * h_, m + lo, unit_mass,
+                                        force_next_.data() + lo, p_.data() + lo,
+                                        v_next_.data() + lo, nullptr, dots, hi - lo);
+    });
+  };
+  if (threads > 1) {
+    const unsigned flush = flush_bits();  // the team computes as the caller does
+#pragma omp parallel num_threads(threads)
+    {
+      adopt_flush_bits(flush);
+      step(omp_get_thread_num(), omp_get_num_threads(), [] {
+#pragma omp barrier
+      });
+    }
+  } else {
+    step(0, 1, [] {});
+  }
+
+  // solve()'s report of its one correction, and advance()'s failures in its order.
+  NewtonReport report;
+  report.iterations = 1;
+  if (!factored) {
+    report.status = Status::kNewtonFailure;
+    report.singular = true;
+    report.correction = std::numeric_limits<double>::infinity();
+  } else if (!std::all_of(parts.begin(), parts.end(),
+                          [](const Part& q) { return q.residual_finite; })) {
+    report.status = Status::kNonFinite;
+  } else {
+    bool finite = true;
+    for (const Part& q : parts) {
+      report.correction = std::max(report.correction, q.correction.size);
+      finite = finite && q.correction.finite;
+    }
+    if (!finite || !std::isfinite(report.correction)) report.status = Status::kNonFinite;
+  }
+  if (const Status s = newton_outcome(report, "M + (h^2/4) Hess U"); s != Status::kSuccess)
+    return s;
+  if (!std::all_of(parts.begin(), parts.end(), [](const Part& q) { return q.position_finite; }))
+    return fail(Status::kNonFinite, "non-finite position");
+  history_->end_row_push();
+  mass_squares = 0.0;
+  momentum = MomentumPass{};
+  for (const Part& q : parts) {
+    mass_squares += q.mass_squares;
+    momentum.finite = momentum.finite && q.momentum.finite;
+    momentum.fv += q.momentum.fv;
+    momentum.fw += q.momentum.fw;
+    momentum.vp += q.momentum.vp;
+  }
+  return Status::kSuccess;
+}
+
+HistoryReport CqMidpointStepper::history() const {
+  if (!history_) return {};
+  HistoryReport report = history_->report();
+  if (by_rows_) {
+    // The step's team, not the history's (one thread inside the split step).
+    report.threads = {row_team_.team(),
+                      row_team_.measuring(),
+                      row_steps_,
+                      row_team_steps_,
+                      row_team_.decisions(),
+                      row_team_.team_won(),
+                      row_team_.team_dropped(),
+                      true};
+  }
+  return report;
 }
 
 void CqMidpointStepper::visit_state(StateArchive& archive) {

@@ -33,6 +33,7 @@
 
 #include "forcing_moments.hpp"
 #include "fracvi/fractional/convolution_quadrature.hpp"
+#include "fracvi/internal/team_chooser.hpp"
 #include "fracvi/memory/history.hpp"
 #include "fracvi/schemes/stepper.hpp"
 #include "fracvi/solve/midpoint_newton.hpp"
@@ -41,6 +42,11 @@
 namespace fracvi::internal {
 
 enum class MemoryStart { kPaperStart, kTaylorSplit };
+
+/// The parts of a step split by rows (CqMidpointStepper::step_by_rows): a team of n ≤ kRowParts
+/// threads takes n contiguous runs of them (a team of two, the halves), one thread all of them.
+/// Fixed, so that the sums formed part by part are the same for every team.
+inline constexpr int kRowParts = 8;
 
 class CqMidpointStepper final : public Stepper {
  public:
@@ -57,13 +63,17 @@ class CqMidpointStepper final : public Stepper {
   [[nodiscard]] std::size_t jacobian_factorizations() const override {
     return newton_.factorizations();
   }
-  [[nodiscard]] HistoryReport history() const override {
-    return history_ ? history_->report() : HistoryReport{};
-  }
+  [[nodiscard]] HistoryReport history() const override;
   void visit_state(StateArchive& archive) override;
 
  private:
   Status advance() override;
+  // advance() from p⁺_k to the momentum pass by rows (by_rows_): the Newton solve's passes, the
+  // position pass, the history's push and the momentum pass, each on the rows of kRowParts parts,
+  // the parts on one thread or split over a team; the linear solve on one thread. The
+  // momentum pass reads the memory sum where the history keeps it. momentum and mass_squares: the
+  // passes' sums, part by part, added in part order (whatever the team).
+  Status step_by_rows(const Eigen::VectorXd* forcing, MomentumPass& momentum, double& mass_squares);
   [[nodiscard]] double time(std::size_t i) const {
     return problem_.t0 + static_cast<double>(i) * h_;
   }
@@ -117,6 +127,12 @@ class CqMidpointStepper final : public Stepper {
   Eigen::VectorXd tilde_x0_, tilde_v0_;  // x_0 and v_0 as x̃ subtracts them (zero where not)
   Eigen::VectorXd root_mass_;  // √M_ii for the health check's sum (fused, M ≠ I, large d only)
   double fv_ = 0.0, fw_ = 0.0, work_ = 0.0, supplied_ = 0.0;
+  // The step split by rows (step_by_rows(), from options.row_split_from degrees of freedom): the
+  // rows [bounds[p], bounds[p + 1]) of part p, the team's size chosen by timing (TeamChooser).
+  bool by_rows_ = false;
+  std::array<Eigen::Index, kRowParts + 1> part_bounds_{};
+  TeamChooser row_team_;
+  std::size_t row_steps_ = 0, row_team_steps_ = 0;
 };
 
 }  // namespace fracvi::internal

@@ -219,6 +219,43 @@ void MidpointNewton::effective_gradient(const Eigen::VectorXd& z, double tau,
   if (forcing_tau != nullptr) g -= *forcing_tau;
 }
 
+bool MidpointNewton::solves_by_rows() const {
+  return linear_ && a_diagonal_.size() > 0 && state_force_ == nullptr &&
+         (potential_ == nullptr || potential_->has_gradient_rows()) &&
+         backend_ != LinearSolver::kDense;
+}
+
+// solve()'s passes of a linear step on rows [lo, hi): each element's operations are solve()'s.
+void MidpointNewton::rows_midpoint(const double* a, const double* increment, Eigen::Index lo,
+                                   Eigen::Index hi) {
+  midpoint_pass(a + lo, increment + lo, mid_.data() + lo, hi - lo);
+}
+
+bool MidpointNewton::rows_residual(double tau, const double* forcing_tau, const double* c,
+                                   const double* increment, Eigen::Index lo, Eigen::Index hi) {
+  double* g = grad_.data();
+  if (potential_ != nullptr) {
+    potential_->gradient_rows(mid_, tau, g, lo, hi);
+  } else {
+    std::fill(g + lo, g + hi, 0.0);
+  }
+  if (forcing_tau != nullptr) {
+    for (Eigen::Index i = lo; i < hi; ++i) g[i] -= forcing_tau[i];  // effective_gradient's g −= f
+  }
+  return diagonal_residual(a_diagonal_.data() + lo, increment + lo, half_h2_, g + lo, c + lo,
+                           residual_.data() + lo, hi - lo);
+}
+
+void MidpointNewton::solve_residual() {
+  factor_->solve_in_place(residual_);
+}
+
+CorrectionPass MidpointNewton::rows_correction(const double* a, double* increment, Eigen::Index lo,
+                                               Eigen::Index hi) {
+  return apply_correction_pass(residual_.data() + lo, a + lo, increment + lo, mid_.data() + lo,
+                               hi - lo, false);
+}
+
 void MidpointNewton::state_force(const Eigen::Ref<const Eigen::VectorXd>& z,
                                  const Eigen::Ref<const Eigen::VectorXd>& increment, double tau,
                                  Eigen::Ref<Eigen::VectorXd> out) {

@@ -209,6 +209,21 @@ TEST_F(NoAllocation, BandedChainWithThreadedFastHistory) {
   }
 }
 
+// The linear chain's step split by rows over the threads (CqMidpointStepper::step_by_rows): one
+// parallel region a step, OpenMP's team started at set-up; threads = 0 switches between one
+// thread and the team.
+TEST_F(NoAllocation, LinearChainStepByRows) {
+  for (const int threads : {0, 2, 1}) {
+    IntegratorOptions options;
+    options.history = HistoryKind::kFast;
+    options.threads = threads;
+    options.row_split_from = 1000;
+    Integrator integ(large_chain(4000, 200, 1, 0.0), fvi_gl(), options);
+    EXPECT_EQ(allocations_while_stepping(integ), 0u) << "threads = " << threads;
+    EXPECT_TRUE(integ.take_solution().history_threads.whole_steps) << "threads = " << threads;
+  }
+}
+
 // The Lobatto schemes' block history on a team of two: its second thread runs the next push's
 // recursions and older window (internal/run_ahead.hpp), started by set_threads; threads = 0 also
 // times its pushes and switches.

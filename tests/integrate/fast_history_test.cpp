@@ -10,14 +10,17 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <complex>
 #include <cstddef>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
 #include <random>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <unsupported/Eigen/FFT>
@@ -624,6 +627,43 @@ TEST(FastHistory, PassesOfSeveralPushesKeepEveryPushsNumbers) {
     LaterOverride tampered(reader, bad);
     EXPECT_THROW(restored.visit_state(tampered), CheckpointError) << "fast.later = " << bad;
   }
+}
+
+// A push split by rows (History::begin_row_push, push_rows, end_row_push: the CQ midpoint step
+// split by rows) gives push()'s numbers bit for bit, whatever the ranges and their order (here
+// odd bounds, the second range pushed first), through the four-push passes; the sum's rows are
+// final once their range is pushed. The other histories refuse it.
+TEST(FastHistory, PushesByRowsArePushesBitForBit) {
+  const Eigen::Index d = 301;
+  const Eigen::MatrixXd xs = rough_sequence(200, d, 47u);
+  FastHistory whole(1.5, d, 200), by_rows(1.5, d, 200);
+  whole.set_threads(1);
+  by_rows.set_threads(1);
+  ASSERT_TRUE(by_rows.pushes_rows());
+  Eigen::VectorXd s_whole(d), s_rows(d);
+  for (Eigen::Index k = 0; k < 200; ++k) {
+    whole.push(xs.col(k));
+    whole.sum(s_whole);
+    by_rows.begin_row_push(xs.col(k).data());
+    for (const auto& [lo, hi] : {std::pair<Eigen::Index, Eigen::Index>{77, 301}, {0, 5}, {5, 77}}) {
+      by_rows.push_rows(lo, hi);
+      for (Eigen::Index i = lo; i < hi; ++i) {
+        ASSERT_EQ(std::bit_cast<std::uint64_t>(by_rows.kept_sum()[i]),
+                  std::bit_cast<std::uint64_t>(s_whole[i]))
+            << "k = " << k << ", row " << i;
+      }
+    }
+    by_rows.end_row_push();
+    by_rows.sum(s_rows);
+    ASSERT_TRUE((s_rows.array() == s_whole.array()).all()) << "k = " << k;
+  }
+  EXPECT_EQ(by_rows.size(), whole.size());
+  FastHistory team(1.5, 5000, 200);
+  team.set_threads(2);  // a run-ahead team pushes whole
+  EXPECT_FALSE(team.pushes_rows());
+  DirectHistory direct(1.5, d, 10);
+  EXPECT_FALSE(direct.pushes_rows());
+  EXPECT_THROW(direct.begin_row_push(xs.col(0).data()), std::logic_error);
 }
 
 TEST(FastHistory, ShortCapacityIsExact) {

@@ -6,7 +6,11 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
+#include <cmath>
+#include <cstdint>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -143,6 +147,39 @@ TEST(ChainPotential, ThreadsGiveTheSameResult) {
   parallel.hessian_values(x, 0.0, h2);
   EXPECT_EQ(h1, h2);
   EXPECT_NEAR(serial.value(x, 0.0), parallel.value(x, 0.0), 1e-12 * serial.value(x, 0.0));
+}
+
+// gradient_rows: any range of the gradient, computed alone, is gradient()'s bit for bit (every
+// boundary, linear and nonlinear springs, ranges that start or end at the chain's ends); a
+// potential without it throws.
+TEST(ChainPotential, GradientRowsAreTheGradientsRows) {
+  constexpr Eigen::Index kD = 203;
+  for (const auto b : {ChainBoundary::kFixed, ChainBoundary::kFree, ChainBoundary::kPeriodic}) {
+    for (const bool linear : {true, false}) {
+      ChainOptions o = options(kD, b);
+      if (linear) o.cubic = o.quartic = 0.0;
+      const ChainPotential chain(o);
+      ASSERT_TRUE(chain.has_gradient_rows());
+      Eigen::VectorXd x(kD);
+      for (Eigen::Index i = 0; i < kD; ++i)
+        x[i] = 0.3 * std::sin(0.01 * static_cast<double>(i * i));
+      Eigen::VectorXd whole(kD);
+      chain.gradient(x, 0.0, whole);
+      Eigen::VectorXd rows = Eigen::VectorXd::Constant(kD, std::nan(""));
+      for (const auto& [lo, hi] :
+           {std::pair<Eigen::Index, Eigen::Index>{100, 203}, {0, 1}, {1, 37}, {37, 100}}) {
+        chain.gradient_rows(x, 0.0, rows.data(), lo, hi);
+      }
+      for (Eigen::Index i = 0; i < kD; ++i) {
+        EXPECT_EQ(std::bit_cast<std::uint64_t>(rows[i]), std::bit_cast<std::uint64_t>(whole[i]))
+            << "row " << i << ", boundary " << static_cast<int>(b) << ", linear " << linear;
+      }
+    }
+  }
+  const QuadraticPotential quadratic(Eigen::MatrixXd::Identity(3, 3));
+  EXPECT_FALSE(quadratic.has_gradient_rows());
+  double g[3];
+  EXPECT_THROW(quadratic.gradient_rows(Eigen::VectorXd::Zero(3), 0.0, g, 0, 3), std::logic_error);
 }
 
 TEST(ChainPotential, RejectsBadOptions) {

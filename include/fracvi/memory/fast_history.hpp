@@ -72,6 +72,12 @@ class FastHistory final : public History, private internal::RunAheadJob {
   FastHistory& operator=(const FastHistory&) = delete;
 
   void push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) override;
+  /// From kAcrossTermsBelow degrees of freedom on one thread (set_threads(1)): push() is
+  /// begin_row_push(), push_rows(0, d), end_row_push().
+  [[nodiscard]] bool pushes_rows() const override;
+  void begin_row_push(const double* x_tilde) override;
+  void push_rows(Eigen::Index lo, Eigen::Index hi) override;
+  void end_row_push() override;
   void sum(Eigen::Ref<Eigen::VectorXd> out) const override;
   /// push() forms the sum here (never the second thread).
   [[nodiscard]] const double* kept_sum() const override { return sum_.data(); }
@@ -135,6 +141,15 @@ class FastHistory final : public History, private internal::RunAheadJob {
   std::size_t later_ = 0;
   Eigen::VectorXd sum_;  // the whole sum after the last push (d)
   std::size_t size_ = 0;
+  // The push begun by begin_row_push(): x̃_k, x̃_{k−n0}'s ring column, the window's first column,
+  // this push's tails_ column, whether it runs the recursions and how many pushes' (a pass).
+  struct RowPush {
+    const double* entering = nullptr;
+    Eigen::Index slot = 0, first = 0, own = 0;
+    bool run_recursions = false;
+    int steps = 1;
+    internal::RunAhead::Turn turn{};
+  } pending_;
   // The thread count and the run-ahead thread (last: its thread is joined before the arrays it
   // writes are destroyed).
   internal::RunAhead run_ahead_;

@@ -52,12 +52,15 @@ struct HistoryThreads {
   std::size_t decisions = 0;
   std::size_t team_won = 0;
   std::size_t team_dropped = 0;
+  /// The team split whole steps by rows (CqMidpointStepper's step by rows: the history's push
+  /// and the step's passes), not only the history's push; pushes count those steps.
+  bool whole_steps = false;
 
   /// Two histories' use as one: the larger team, the counts added.
   [[nodiscard]] HistoryThreads operator+(const HistoryThreads& o) const {
-    return {std::max(team, o.team),       measured || o.measured,  pushes + o.pushes,
-            team_pushes + o.team_pushes,  decisions + o.decisions, team_won + o.team_won,
-            team_dropped + o.team_dropped};
+    return {std::max(team, o.team),        measured || o.measured,      pushes + o.pushes,
+            team_pushes + o.team_pushes,   decisions + o.decisions,     team_won + o.team_won,
+            team_dropped + o.team_dropped, whole_steps || o.whole_steps};
   }
 };
 
@@ -89,6 +92,19 @@ class History {
   [[nodiscard]] virtual const double* kept_sum() const { return nullptr; }
   /// Forgets all pushed values (capacity is kept).
   virtual void clear() = 0;
+
+  /// A push split by rows over the caller's own threads (the CQ midpoint step split by rows,
+  /// cq_midpoint_stepper.hpp): begin_row_push(x̃) on one thread, then push_rows(lo, hi) for
+  /// disjoint ranges covering [0, d) — from several threads at once, each after x̃'s rows
+  /// [lo, hi) are written, and reading only those rows of x̃ — then end_row_push() on one thread,
+  /// after every range: the same numbers as push(x̃), and kept_sum()'s rows [lo, hi) are the
+  /// sum's once push_rows(lo, hi) returns. A push begun but never ended (its step failed) leaves
+  /// the pushed values and the sum as they were only if no push_rows ran. Only where
+  /// pushes_rows(); the defaults throw std::logic_error.
+  [[nodiscard]] virtual bool pushes_rows() const { return false; }
+  virtual void begin_row_push(const double* x_tilde);
+  virtual void push_rows(Eigen::Index lo, Eigen::Index hi);
+  virtual void end_row_push();
 
   /// Number of values pushed since construction or clear().
   [[nodiscard]] virtual std::size_t size() const = 0;

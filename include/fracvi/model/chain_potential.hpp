@@ -55,6 +55,10 @@ class ChainPotential final : public Potential {
   [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const override;
   void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
                 Eigen::Ref<Eigen::VectorXd> g) const override;
+  /// Rows [lo, hi) of the gradient on this thread (gradient() splits d over its threads).
+  [[nodiscard]] bool has_gradient_rows() const override { return true; }
+  void gradient_rows(const Eigen::Ref<const Eigen::VectorXd>& x, double t, double* g,
+                     Eigen::Index lo, Eigen::Index hi) const override;
   void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
                Eigen::Ref<Eigen::MatrixXd> H) const override;
   [[nodiscard]] bool has_constant_hessian() const override {

@@ -61,6 +61,15 @@ class Potential {
   /// dissipated work (two extra value() calls per step). The default is the safe answer.
   [[nodiscard]] virtual bool is_time_dependent() const { return true; }
 
+  /// True when the potential provides gradient_rows().
+  [[nodiscard]] virtual bool has_gradient_rows() const { return false; }
+  /// g[i] = ∂U/∂x_i(x, t) for lo ≤ i < hi, each the same number as gradient()'s (g points to d
+  /// entries; the others are left alone): threads can split one gradient by rows, calling this
+  /// at once on disjoint ranges of the same x. Must not allocate or throw. The default throws
+  /// std::logic_error (a potential without it).
+  virtual void gradient_rows(const Eigen::Ref<const Eigen::VectorXd>& x, double t, double* g,
+                             Eigen::Index lo, Eigen::Index hi) const;
+
   /// One structurally non-zero entry of the upper triangle of ∇²U (row ≤ col).
   struct HessianEntry {
     Eigen::Index row;

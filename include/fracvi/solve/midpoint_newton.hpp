@@ -43,6 +43,7 @@
 #include "fracvi/model/potential.hpp"
 #include "fracvi/model/state_force.hpp"
 #include "fracvi/solve/symmetric_factor.hpp"
+#include "fracvi/solve/vector_passes.hpp"
 
 namespace fracvi::internal {
 
@@ -86,6 +87,28 @@ class MidpointNewton {
   /// effective_gradient's samples at d = 1 (perf); d = 1 run 167 → 160 ns per step.
   NewtonReport solve(const Eigen::VectorXd& a, double tau, const Eigen::VectorXd& c,
                      const Eigen::VectorXd* forcing_tau, Eigen::VectorXd& increment);
+
+  /// The linear solve split by rows (CqMidpointStepper's row-split step): solve()'s one
+  /// correction of a linear problem in four parts — rows_midpoint() for disjoint row ranges
+  /// covering [0, d), then (once every range's midpoint is written: the potential's gradient reads
+  /// neighbouring rows) rows_residual() for the same ranges, then solve_residual() on one thread,
+  /// then rows_correction() for the ranges — from several threads at once: the same numbers as
+  /// solve(). Where solves_by_rows(): linear, A diagonal, no state force, a potential with
+  /// gradient_rows() (or none), a structured factorisation (banded or sparse).
+  [[nodiscard]] bool solves_by_rows() const;
+  /// Rows [lo, hi) of the midpoint a + Δ/2.
+  void rows_midpoint(const double* a, const double* increment, Eigen::Index lo, Eigen::Index hi);
+  /// Rows [lo, hi) of the residual A Δ + (h²/2) g − c, g = ∇U(midpoint, τ) − f(τ) (forcing_tau
+  /// null: f ≡ 0); whether they are finite.
+  bool rows_residual(double tau, const double* forcing_tau, const double* c,
+                     const double* increment, Eigen::Index lo, Eigen::Index hi);
+  /// Whether J was factored (else solve() reports kNewtonFailure, singular).
+  [[nodiscard]] bool factor_ok() const { return constant_factor_ok_; }
+  /// The correction δ = J⁻¹ r in place of the residual (one thread). Only when factor_ok().
+  void solve_residual();
+  /// Rows [lo, hi) of Δ −= δ, with max|δ_i| and whether Δ stays finite.
+  CorrectionPass rows_correction(const double* a, double* increment, Eigen::Index lo,
+                                 Eigen::Index hi);
 
   /// g = ∇U(z, τ) − f(τ) (zero potential and forcing allowed).
   void effective_gradient(const Eigen::VectorXd& z, double tau, const Eigen::VectorXd* forcing_tau,

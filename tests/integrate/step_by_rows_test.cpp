@@ -1,0 +1,201 @@
+// The linear `fvi-gl` step split by rows over a team (CqMidpointStepper::step_by_rows, from
+// IntegratorOptions::row_split_from degrees of freedom):
+//
+//  * positions and velocities are the whole steps' bit for bit, on one thread, a team of two and
+//    the timed choice; the diagnostics (energy, dissipated work, balance), formed part by part,
+//    are the same bit for bit whatever the team and within round-off of the whole steps';
+//  * a run that fails (the health check, a non-finite residual) ends as the whole steps' run does
+//    (status, message, step, stored rows);
+//  * a checkpoint taken on a team of two resumes bit for bit on one thread or two, after each
+//    push of the fast history's four-push cycle;
+//  * the split is reported (summary's history_threads.whole_steps) and taken only where it
+//    applies (linear potential with gradient_rows, diagonal M and R, fvi-gl, the fast history).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "fracvi/core/state_archive.hpp"
+#include "fracvi/integrate/integrator.hpp"
+#include "fracvi/model/chain_potential.hpp"
+#include "fracvi/schemes/registry.hpp"
+
+namespace fracvi {
+namespace {
+
+// A fixed linear chain of d masses (uneven, or all 1), 2α = 3/2 Caputo damping with x_0 and v_0
+// both non-zero (x̃ subtracts both), and a load f(t) on every mass.
+InitialValueProblem linear_chain(Eigen::Index d, bool unit_mass, std::size_t steps,
+                                 double onsite = 0.5, double t_end = 3.0) {
+  InitialValueProblem p;
+  Eigen::VectorXd masses(d);
+  for (Eigen::Index i = 0; i < d; ++i)
+    masses[i] = unit_mass ? 1.0 : 1.0 + 0.3 * std::sin(0.7 * static_cast<double>(i));
+  p.model.mass = ModelMatrix::diagonal(masses);
+  p.model.damping = ModelMatrix::identity(d, 0.4);
+  p.model.alpha = 0.75;
+  p.model.convention = Convention::kCaputo;
+  ChainOptions c;
+  c.dimension = d;
+  c.stiffness = 2.0;
+  c.onsite = onsite;
+  c.cubic = c.quartic = 0.0;
+  p.model.potential = make_chain_potential(c);
+  p.model.forcing = [d](double t, Eigen::Ref<Eigen::VectorXd> f) {
+    for (Eigen::Index i = 0; i < d; ++i) f[i] = 0.1 * std::cos(t + 0.01 * static_cast<double>(i));
+  };
+  p.x0.resize(d);
+  p.v0.resize(d);
+  for (Eigen::Index i = 0; i < d; ++i) {
+    const double xi = M_PI * static_cast<double>(i + 1) / static_cast<double>(d + 1);
+    p.x0[i] = 0.4 * std::sin(3.0 * xi);
+    p.v0[i] = 0.3 * std::cos(5.0 * xi);
+  }
+  p.t_end = t_end;
+  p.steps = steps;
+  return p;
+}
+
+IntegratorOptions options_for(int threads, Eigen::Index row_split_from) {
+  IntegratorOptions o;
+  o.history = HistoryKind::kFast;
+  o.threads = threads;
+  o.row_split_from = row_split_from;
+  o.mirror = false;
+  o.error_estimate = ErrorEstimateKind::kNone;
+  return o;
+}
+
+constexpr Eigen::Index kNever = std::numeric_limits<Eigen::Index>::max();
+
+template <class A>
+bool same_bits(const A& a, const A& b) {
+  return a.size() == b.size() &&
+         std::memcmp(a.data(), b.data(), static_cast<std::size_t>(a.size()) * sizeof(double)) == 0;
+}
+
+Solution run(const InitialValueProblem& p, int threads, Eigen::Index row_split_from) {
+  return integrate(p, *parse_method("fvi-gl"), options_for(threads, row_split_from));
+}
+
+// d = 501: eight parts of whole vector groups (56 to 63 rows; the last has a remainder), two
+// threads take four each, three take 2, 3 and 3; 300 steps fill the window (n0 = 16) and run
+// many four-push passes.
+TEST(StepByRows, PositionsAreTheWholeStepsBitForBitWhateverTheTeam) {
+  for (const bool unit_mass : {true, false}) {
+    SCOPED_TRACE(unit_mass ? "M = I" : "diagonal M");
+    const InitialValueProblem p = linear_chain(501, unit_mass, 300);
+    const Solution whole = run(p, 1, kNever);
+    ASSERT_EQ(whole.status, Status::kSuccess) << whole.message;
+    EXPECT_FALSE(whole.history_threads.whole_steps);
+    EXPECT_EQ(whole.history, "fast");
+    const Solution one = run(p, 1, 64);
+    for (const int threads : {1, 2, 3, 0}) {
+      SCOPED_TRACE("threads = " + std::to_string(threads));
+      const Solution split = threads == 1 ? one : run(p, threads, 64);
+      ASSERT_EQ(split.status, Status::kSuccess) << split.message;
+      EXPECT_TRUE(split.history_threads.whole_steps);
+      EXPECT_EQ(split.history_threads.pushes, p.steps);
+      if (threads == 2 || threads == 3) {
+        EXPECT_EQ(split.history_threads.team, threads);
+        EXPECT_EQ(split.history_threads.team_pushes, p.steps);
+      } else if (threads == 1) {
+        EXPECT_EQ(split.history_threads.team_pushes, 0u);
+      }
+      EXPECT_TRUE(same_bits(split.x, whole.x));
+      EXPECT_TRUE(same_bits(split.v, whole.v));
+      // The part-by-part sums: the same for every team.
+      EXPECT_TRUE(same_bits(split.energy, one.energy));
+      EXPECT_TRUE(same_bits(split.dissipated, one.dissipated));
+      EXPECT_TRUE(same_bits(split.balance, one.balance));
+      EXPECT_EQ(std::memcmp(&split.max_balance_error, &one.max_balance_error, sizeof(double)), 0);
+    }
+    // Against the whole passes' sums: round-off (|E| ≈ 30 here).
+    double energy_difference = 0.0;
+    for (Eigen::Index k = 0; k < whole.energy.size(); ++k) {
+      energy_difference = std::max(energy_difference, std::abs(one.energy[k] - whole.energy[k]) /
+                                                          std::max(1.0, std::abs(whole.energy[k])));
+    }
+    EXPECT_LE(energy_difference, 1e-14);
+    EXPECT_NEAR(one.max_balance_error, whole.max_balance_error,
+                1e-12 * std::max(1.0, whole.max_balance_error));
+  }
+}
+
+// Two runs that fail: an unstable potential (on-site stiffness −40, every mode grows like e^{6t};
+// the health check stops it at step 62), and a load that turns NaN at t = 1 (the Newton residual
+// is not finite at step 10). Each ends as the whole steps' run does, on one thread and on two.
+TEST(StepByRows, FailuresEndAsTheWholeStepsRunsDo) {
+  InitialValueProblem nan_load = linear_chain(300, false, 30);
+  nan_load.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
+    f.setConstant(t > 1.0 ? std::numeric_limits<double>::quiet_NaN() : 0.1);
+  };
+  for (const InitialValueProblem& p : {linear_chain(300, false, 4000, -40.0, 400.0), nan_load}) {
+    const Solution whole = run(p, 1, kNever);
+    ASSERT_NE(whole.status, Status::kSuccess);
+    for (const int threads : {1, 2}) {
+      SCOPED_TRACE(whole.message + ", threads = " + std::to_string(threads));
+      const Solution split = run(p, threads, 64);
+      EXPECT_TRUE(split.history_threads.whole_steps);
+      EXPECT_EQ(split.status, whole.status);
+      EXPECT_EQ(split.message, whole.message);
+      EXPECT_EQ(split.steps_done, whole.steps_done);
+      EXPECT_TRUE(same_bits(split.x, whole.x));
+      EXPECT_TRUE(same_bits(split.t, whole.t));
+    }
+  }
+}
+
+// Checkpoints after each push of the four-push cycle (and at the first step), written on a team
+// of two, resumed on one thread and on two: the rest of the run bit for bit.
+TEST(StepByRows, CheckpointsResumeBitForBitOnOneThreadOrTwo) {
+  const InitialValueProblem p = linear_chain(300, false, 120);
+  const Method method = *parse_method("fvi-gl");
+  const Solution reference = integrate(p, method, options_for(2, 64));
+  ASSERT_EQ(reference.status, Status::kSuccess) << reference.message;
+  for (const std::size_t k :
+       {std::size_t{1}, std::size_t{40}, std::size_t{41}, std::size_t{42}, std::size_t{43}}) {
+    Integrator writer_run(p, method, options_for(2, 64));
+    for (std::size_t i = 0; i < k; ++i) ASSERT_EQ(writer_run.step(), Status::kRunning);
+    StateWriter writer;
+    writer_run.visit_state(writer);
+    for (const int threads : {1, 2}) {
+      SCOPED_TRACE("checkpoint after step " + std::to_string(k) + ", resumed on " +
+                   std::to_string(threads));
+      Integrator resumed(p, method, options_for(threads, 64));
+      StateReader reader(writer.bytes(), "test state");
+      resumed.visit_state(reader);
+      reader.finish();
+      resumed.run();
+      const Solution s = resumed.take_solution();
+      EXPECT_EQ(s.status, Status::kSuccess) << s.message;
+      EXPECT_TRUE(same_bits(s.x, reference.x));
+      EXPECT_TRUE(same_bits(s.v, reference.v));
+      EXPECT_TRUE(same_bits(s.balance, reference.balance));
+    }
+  }
+}
+
+// Where the split does not apply, the whole steps run (and say so): a nonlinear chain (Newton
+// iterates), fvi-bdf2 (P's force added to the memory sum), the direct history.
+TEST(StepByRows, OnlyTheLinearPaperSchemeWithTheFastHistorySplits) {
+  InitialValueProblem nonlinear = linear_chain(200, false, 40);
+  ChainOptions c;
+  c.dimension = 200;
+  c.quartic = 1.0;
+  nonlinear.model.potential = make_chain_potential(c);
+  EXPECT_FALSE(run(nonlinear, 2, 64).history_threads.whole_steps);
+  const InitialValueProblem p = linear_chain(200, false, 40);
+  EXPECT_TRUE(run(p, 2, 64).history_threads.whole_steps);
+  EXPECT_FALSE(
+      integrate(p, *parse_method("fvi-bdf2"), options_for(2, 64)).history_threads.whole_steps);
+  IntegratorOptions direct = options_for(2, 64);
+  direct.history = HistoryKind::kDirect;
+  EXPECT_FALSE(integrate(p, *parse_method("fvi-gl"), direct).history_threads.whole_steps);
+  EXPECT_FALSE(run(p, 2, 201).history_threads.whole_steps);  // below row_split_from
+  EXPECT_THROW(run(p, 2, 0), ValidationError);
+}
+
+}  // namespace
+}  // namespace fracvi
