@@ -96,8 +96,7 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
   g_mid_.setZero(d_);
   // The step split by rows: the fused passes, the fast history pushed by rows (one thread in
   // it: the team is the step's), a linear solve whose residual goes by rows.
-  by_rows_ = fused_passes_ && d_ >= options.row_split_from &&
-             memory_start_ == MemoryStart::kPaperStart && use_history_ &&
+  by_rows_ = fused_passes_ && d_ >= options.row_split_from && use_history_ &&
              options.start != StartValue::kExplicitEuler && newton_.solves_by_rows();
   if (by_rows_) {
     history_->set_threads(1);
@@ -159,6 +158,12 @@ void CqMidpointStepper::tilde(const Eigen::Ref<const Eigen::VectorXd>& x, std::s
 
 void CqMidpointStepper::add_polynomial_force(std::size_t k, const Eigen::VectorXd& x0,
                                              const Eigen::VectorXd& v0, Eigen::VectorXd& s) const {
+  add_polynomial_force(k, x0, v0, s, 0, s.size());
+}
+
+void CqMidpointStepper::add_polynomial_force(std::size_t k, const Eigen::VectorXd& x0,
+                                             const Eigen::VectorXd& v0, Eigen::VectorXd& s,
+                                             Eigen::Index lo, Eigen::Index hi) const {
   // P's force at node k in the x-equation M(x_{k+1} − 2x_k + x_{k−1})/h² + F_k + … = 0 is the
   // second difference of H: (H(t_{k+1}) − 2H(t_k) + H(t_{k−1}))/h², which the scheme integrates
   // exactly (P's part of the solution is reproduced to round-off, whatever the singularity of its
@@ -167,7 +172,9 @@ void CqMidpointStepper::add_polynomial_force(std::size_t k, const Eigen::VectorX
   // τ^e.
   auto add = [&](double a, double e, const Eigen::VectorXd& vec) {
     const double second = k == 0 ? 2.0 : second_difference_of_power(k, e);  // × h^e
-    s += (poly_scale_ * a * std::pow(h_, e) * second) * vec;
+    // Element by element c·vec_i, then the sum (the same on any range of rows).
+    s.segment(lo, hi - lo) +=
+        (poly_scale_ * a * std::pow(h_, e) * second) * vec.segment(lo, hi - lo);
   };
   if (jx_ != 0.0) add(jx_, ex_, x0);
   if (jv_ != 0.0) add(jv_, ev_, v0);
@@ -189,13 +196,12 @@ Status CqMidpointStepper::advance() {
   const bool vector_sums = fused && d_ >= kVectorPassesFrom;
   const bool vector_dots = diagnostics_ && d_ >= kVectorPassesFrom;
   double mass_squares = 0.0;
-  const double* damping_sum = sum_.data();  // Σ c_m x̃_{k+1−m}, in units of R h^{−2α}
   MomentumPass momentum;
   if (by_rows_) {
     if (const Status s = step_by_rows(f_ptr, momentum, mass_squares); s != Status::kSuccess)
       return s;
-    damping_sum = history_->kept_sum();
   } else {
+    const double* damping_sum = sum_.data();  // Σ c_m x̃_{k+1−m}, in units of R h^{−2α}
     if (euler_start) {
       // Negative control only: x_1 = x_0 + h v_0, momentum from its discrete Legendre transform.
       dx_ = h_ * problem_.v0;
@@ -362,7 +368,8 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
   const bool unit_mass = mass_solver_.unit_mass();
   const double* root_mass = root_mass_.size() > 0 ? root_mass_.data() : nullptr;
   const bool dots = diagnostics_;  // d ≥ kVectorPassesFrom: the momentum pass sums F·v, F·M⁻¹F
-  struct alignas(64) Part {        // a part's results, a cache line each (written by its thread)
+  const bool taylor_split = memory_start_ == MemoryStart::kTaylorSplit;
+  struct alignas(64) Part {  // a part's results, a cache line each (written by its thread)
     bool residual_finite = false, position_finite = false;
     CorrectionPass correction;
     double mass_squares = 0.0;
@@ -370,6 +377,11 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
   };
   std::array<Part, kRowParts> parts{};
   const bool factored = newton_.factor_ok();
+  // Round (1) ran at the end of the previous step's rounds (next_started_), unless that step was
+  // not split or a checkpoint was loaded since; this step's does so for the next (if any).
+  const bool started = next_started_;
+  next_started_ = false;
+  const bool start_next = k + 1 < n_steps_;
   // Begun before the rounds (only its bookkeeping: a step that fails before round 5 leaves the
   // history as it was).
   if (factored) history_->begin_row_push(x_tilde_.data());
@@ -386,15 +398,17 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
       for (int p = me * kRowParts / team; p < (me + 1) * kRowParts / team; ++p)
         rows(parts[p], part_bounds_[p], part_bounds_[p + 1]);
     };
-    each([&](Part&, Eigen::Index lo, Eigen::Index hi) {
-      start_momentum_pass(p_.data() + lo, force_.data() + lo, impulse, h_, p_plus_.data() + lo,
-                          rhs_.data() + lo, hi - lo);
-      if (k == 0) {
-        for (Eigen::Index i = lo; i < hi; ++i) dx_[i] = h_ * problem_.v0[i];
-      }
-      newton_.rows_midpoint(x_cur_.data(), dx_.data(), lo, hi);
-    });
-    barrier();
+    if (!started) {
+      each([&](Part&, Eigen::Index lo, Eigen::Index hi) {
+        start_momentum_pass(p_.data() + lo, force_.data() + lo, impulse, h_, p_plus_.data() + lo,
+                            rhs_.data() + lo, hi - lo);
+        if (k == 0) {
+          for (Eigen::Index i = lo; i < hi; ++i) dx_[i] = h_ * problem_.v0[i];
+        }
+        newton_.rows_midpoint(x_cur_.data(), dx_.data(), lo, hi);
+      });
+      barrier();
+    }
     if (!factored) return;
     each([&](Part& part, Eigen::Index lo, Eigen::Index hi) {
       part.residual_finite = newton_.rows_residual(t_half, f, rhs_.data(), dx_.data(), lo, hi);
@@ -416,13 +430,26 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
              q.position_finite;
     });
     if (!finite) return;
-    const double* sum = history_->kept_sum();
+    const double* kept = history_->kept_sum();
     each([&](Part& part, Eigen::Index lo, Eigen::Index hi) {
       history_->push_rows(lo, hi);
-      part.momentum = new_momentum_pass(force_matrix_.stored_diagonal()->data() + lo, sum + lo,
+      const double* damping_sum = kept + lo;
+      if (taylor_split) {  // advance()'s sum() copy and P's force, on these rows
+        copy_elements(kept + lo, sum_.data() + lo, hi - lo);
+        add_polynomial_force(k + 1, problem_.x0, problem_.v0, sum_, lo, hi);
+        damping_sum = sum_.data() + lo;
+      }
+      part.momentum = new_momentum_pass(force_matrix_.stored_diagonal()->data() + lo, damping_sum,
                                         p_minus_.data() + lo, 0.5 * h_, m + lo, unit_mass,
                                         force_next_.data() + lo, p_.data() + lo,
                                         v_next_.data() + lo, nullptr, dots, hi - lo);
+      // Round (1) of the next step, from p_{k+1}, F_{k+1}, x_{k+1} and the predictor Δ_k while
+      // these rows are in cache: the end of this step's rounds is the next one's first barrier.
+      if (start_next) {
+        start_momentum_pass(p_.data() + lo, force_next_.data() + lo, 0.5 * h_, h_,
+                            p_plus_.data() + lo, rhs_.data() + lo, hi - lo);
+        newton_.rows_midpoint(x_next_.data(), dx_.data(), lo, hi);
+      }
     });
   };
   if (threads > 1) {
@@ -461,6 +488,7 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
   if (!std::all_of(parts.begin(), parts.end(), [](const Part& q) { return q.position_finite; }))
     return fail(Status::kNonFinite, "non-finite position");
   history_->end_row_push();
+  next_started_ = start_next;  // round (4) ran
   mass_squares = 0.0;
   momentum = MomentumPass{};
   for (const Part& q : parts) {
@@ -491,6 +519,7 @@ HistoryReport CqMidpointStepper::history() const {
 }
 
 void CqMidpointStepper::visit_state(StateArchive& archive) {
+  next_started_ = false;  // a loaded state: the next step forms its own p⁺ and midpoint
   visit_step_index(archive, d_, n_steps_, k_);
   archive.dense("cq_midpoint.x", x_cur_);
   archive.dense("cq_midpoint.v", v_cur_);

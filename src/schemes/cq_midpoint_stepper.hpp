@@ -89,6 +89,9 @@ class CqMidpointStepper final : public Stepper {
   // P from the initial data x0, v0 (the problem's, or the mirror run's own copies).
   void add_polynomial_force(std::size_t k, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
                             Eigen::VectorXd& s) const;
+  // The same on rows [lo, hi) of s (each element as in the whole vector's).
+  void add_polynomial_force(std::size_t k, const Eigen::VectorXd& x0, const Eigen::VectorXd& v0,
+                            Eigen::VectorXd& s, Eigen::Index lo, Eigen::Index hi) const;
 
   const InitialValueProblem& problem_;
   IntegratorOptions options_;
@@ -133,6 +136,7 @@ class CqMidpointStepper final : public Stepper {
   std::array<Eigen::Index, kRowParts + 1> part_bounds_{};
   TeamChooser row_team_;
   std::size_t row_steps_ = 0, row_team_steps_ = 0;
+  bool next_started_ = false;  // the last split step formed p⁺_k, h p⁺_k and the midpoint of k_
 };
 
 }  // namespace fracvi::internal

@@ -1,5 +1,5 @@
-// The linear `fvi-gl` step split by rows over a team (CqMidpointStepper::step_by_rows, from
-// IntegratorOptions::row_split_from degrees of freedom):
+// The linear `fvi-gl` and `fvi-bdf2` step split by rows over a team
+// (CqMidpointStepper::step_by_rows, from IntegratorOptions::row_split_from degrees of freedom):
 //
 //  * positions and velocities are the whole steps' bit for bit, on one thread, a team of two and
 //    the timed choice; the diagnostics (energy, dissipated work, balance), formed part by part,
@@ -9,7 +9,8 @@
 //  * a checkpoint taken on a team of two resumes bit for bit on one thread or two, after each
 //    push of the fast history's four-push cycle;
 //  * the split is reported (summary's history_threads.whole_steps) and taken only where it
-//    applies (linear potential with gradient_rows, diagonal M and R, fvi-gl, the fast history).
+//    applies (linear potential with gradient_rows, diagonal M and R, fvi-gl or fvi-bdf2, the
+//    fast history).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -27,15 +28,16 @@ namespace {
 // A fixed linear chain of d masses (uneven, or all 1), 2α = 3/2 Caputo damping with x_0 and v_0
 // both non-zero (x̃ subtracts both), and a load f(t) on every mass.
 InitialValueProblem linear_chain(Eigen::Index d, bool unit_mass, std::size_t steps,
-                                 double onsite = 0.5, double t_end = 3.0) {
+                                 double onsite = 0.5, double t_end = 3.0,
+                                 Convention convention = Convention::kCaputo, double alpha = 0.75) {
   InitialValueProblem p;
   Eigen::VectorXd masses(d);
   for (Eigen::Index i = 0; i < d; ++i)
     masses[i] = unit_mass ? 1.0 : 1.0 + 0.3 * std::sin(0.7 * static_cast<double>(i));
   p.model.mass = ModelMatrix::diagonal(masses);
   p.model.damping = ModelMatrix::identity(d, 0.4);
-  p.model.alpha = 0.75;
-  p.model.convention = Convention::kCaputo;
+  p.model.alpha = alpha;
+  p.model.convention = convention;
   ChainOptions c;
   c.dimension = d;
   c.stiffness = 2.0;
@@ -75,25 +77,32 @@ bool same_bits(const A& a, const A& b) {
          std::memcmp(a.data(), b.data(), static_cast<std::size_t>(a.size()) * sizeof(double)) == 0;
 }
 
-Solution run(const InitialValueProblem& p, int threads, Eigen::Index row_split_from) {
-  return integrate(p, *parse_method("fvi-gl"), options_for(threads, row_split_from));
+Solution run(const InitialValueProblem& p, int threads, Eigen::Index row_split_from,
+             const char* scheme = "fvi-gl") {
+  return integrate(p, *parse_method(scheme), options_for(threads, row_split_from));
 }
 
 // d = 501: eight parts of whole vector groups (56 to 63 rows; the last has a remainder), two
 // threads take four each, three take 2, 3 and 3; 300 steps fill the window (n0 = 16) and run
 // many four-push passes.
+// fvi-bdf2's memory sum has P's force added, on each part's rows: with Riemann–Liouville damping
+// of order 0.6 both of its terms (x_0's and v_0's) are there.
 TEST(StepByRows, PositionsAreTheWholeStepsBitForBitWhateverTheTeam) {
-  for (const bool unit_mass : {true, false}) {
-    SCOPED_TRACE(unit_mass ? "M = I" : "diagonal M");
-    const InitialValueProblem p = linear_chain(501, unit_mass, 300);
-    const Solution whole = run(p, 1, kNever);
+  for (const auto& [scheme, unit_mass] :
+       {std::pair{"fvi-gl", true}, {"fvi-gl", false}, {"fvi-bdf2", false}}) {
+    SCOPED_TRACE(std::string(scheme) + (unit_mass ? ", M = I" : ", diagonal M"));
+    const bool bdf2 = std::string(scheme) == "fvi-bdf2";
+    const InitialValueProblem p =
+        linear_chain(501, unit_mass, 300, 0.5, 3.0,
+                     bdf2 ? Convention::kRiemannLiouville : Convention::kCaputo, bdf2 ? 0.3 : 0.75);
+    const Solution whole = run(p, 1, kNever, scheme);
     ASSERT_EQ(whole.status, Status::kSuccess) << whole.message;
     EXPECT_FALSE(whole.history_threads.whole_steps);
     EXPECT_EQ(whole.history, "fast");
-    const Solution one = run(p, 1, 64);
+    const Solution one = run(p, 1, 64, scheme);
     for (const int threads : {1, 2, 3, 0}) {
       SCOPED_TRACE("threads = " + std::to_string(threads));
-      const Solution split = threads == 1 ? one : run(p, threads, 64);
+      const Solution split = threads == 1 ? one : run(p, threads, 64, scheme);
       ASSERT_EQ(split.status, Status::kSuccess) << split.message;
       EXPECT_TRUE(split.history_threads.whole_steps);
       EXPECT_EQ(split.history_threads.pushes, p.steps);
@@ -178,8 +187,8 @@ TEST(StepByRows, CheckpointsResumeBitForBitOnOneThreadOrTwo) {
 }
 
 // Where the split does not apply, the whole steps run (and say so): a nonlinear chain (Newton
-// iterates), fvi-bdf2 (P's force added to the memory sum), the direct history.
-TEST(StepByRows, OnlyTheLinearPaperSchemeWithTheFastHistorySplits) {
+// iterates), fvi-midpoint (implicit damping), the direct history, d below row_split_from.
+TEST(StepByRows, OnlyLinearCqMidpointStepsWithTheFastHistorySplit) {
   InitialValueProblem nonlinear = linear_chain(200, false, 40);
   ChainOptions c;
   c.dimension = 200;
@@ -188,8 +197,8 @@ TEST(StepByRows, OnlyTheLinearPaperSchemeWithTheFastHistorySplits) {
   EXPECT_FALSE(run(nonlinear, 2, 64).history_threads.whole_steps);
   const InitialValueProblem p = linear_chain(200, false, 40);
   EXPECT_TRUE(run(p, 2, 64).history_threads.whole_steps);
-  EXPECT_FALSE(
-      integrate(p, *parse_method("fvi-bdf2"), options_for(2, 64)).history_threads.whole_steps);
+  EXPECT_TRUE(run(p, 2, 64, "fvi-bdf2").history_threads.whole_steps);
+  EXPECT_FALSE(run(p, 2, 64, "fvi-midpoint").history_threads.whole_steps);
   IntegratorOptions direct = options_for(2, 64);
   direct.history = HistoryKind::kDirect;
   EXPECT_FALSE(integrate(p, *parse_method("fvi-gl"), direct).history_threads.whole_steps);
