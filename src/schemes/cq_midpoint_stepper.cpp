@@ -12,6 +12,7 @@
 #include <boost/math/special_functions/gamma.hpp>
 #include <chrono>
 #include <cmath>
+#include <exception>
 #include <limits>
 
 namespace fracvi::internal {
@@ -95,9 +96,11 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
   }
   g_mid_.setZero(d_);
   // The step split by rows: the fused passes, the fast history pushed by rows (one thread in
-  // it: the team is the step's), a linear solve whose residual goes by rows.
+  // it: the team is the step's); a linear solve whose residual goes by rows, or else Newton's
+  // solve on one thread.
   by_rows_ = fused_passes_ && d_ >= options.row_split_from && use_history_ &&
-             options.start != StartValue::kExplicitEuler && newton_.solves_by_rows();
+             options.start != StartValue::kExplicitEuler;
+  split_newton_ = newton_.solves_by_rows();
   if (by_rows_) {
     history_->set_threads(1);
     by_rows_ = history_->pushes_rows();
@@ -376,7 +379,9 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
     MomentumPass momentum;
   };
   std::array<Part, kRowParts> parts{};
-  const bool factored = newton_.factor_ok();
+  const bool factored = !split_newton_ || newton_.factor_ok();
+  NewtonReport report;        // Newton's on one thread (!split_newton_), written by thread 0
+  std::exception_ptr thrown;  // what it threw (a user's potential), rethrown after the rounds
   // Round (1) ran at the end of the previous step's rounds (next_started_), unless that step was
   // not split or a checkpoint was loaded since; this step's does so for the next (if any).
   const bool started = next_started_;
@@ -405,19 +410,32 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
         if (k == 0) {
           for (Eigen::Index i = lo; i < hi; ++i) dx_[i] = h_ * problem_.v0[i];
         }
-        newton_.rows_midpoint(x_cur_.data(), dx_.data(), lo, hi);
+        if (split_newton_) newton_.rows_midpoint(x_cur_.data(), dx_.data(), lo, hi);
       });
       barrier();
     }
     if (!factored) return;
-    each([&](Part& part, Eigen::Index lo, Eigen::Index hi) {
-      part.residual_finite = newton_.rows_residual(t_half, f, rhs_.data(), dx_.data(), lo, hi);
-    });
+    if (split_newton_) {
+      each([&](Part& part, Eigen::Index lo, Eigen::Index hi) {
+        part.residual_finite = newton_.rows_residual(t_half, f, rhs_.data(), dx_.data(), lo, hi);
+      });
+      barrier();
+      if (me == 0) newton_.solve_residual();
+    } else if (me == 0) {
+      try {
+        report = newton_.solve(x_cur_, t_half, rhs_, forcing, dx_);
+      } catch (...) {
+        thrown = std::current_exception();
+      }
+    }
     barrier();
-    if (me == 0) newton_.solve_residual();
-    barrier();
+    if (thrown || report.status != Status::kSuccess) return;
     each([&](Part& part, Eigen::Index lo, Eigen::Index hi) {
-      part.correction = newton_.rows_correction(x_cur_.data(), dx_.data(), lo, hi);
+      if (split_newton_) {
+        part.correction = newton_.rows_correction(x_cur_.data(), dx_.data(), lo, hi);
+      } else {
+        part.residual_finite = true;  // solve() checked them
+      }
       part.position_finite = new_position_pass(
           m + lo, unit_mass, dx_.data() + lo, 2.0 / h_, p_plus_.data() + lo, x_cur_.data() + lo,
           tilde_x0_.data() + lo, static_cast<double>(k + 1) * h_, tilde_v0_.data() + lo,
@@ -448,7 +466,7 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
       if (start_next) {
         start_momentum_pass(p_.data() + lo, force_next_.data() + lo, 0.5 * h_, h_,
                             p_plus_.data() + lo, rhs_.data() + lo, hi - lo);
-        newton_.rows_midpoint(x_next_.data(), dx_.data(), lo, hi);
+        if (split_newton_) newton_.rows_midpoint(x_next_.data(), dx_.data(), lo, hi);
       }
     });
   };
@@ -465,24 +483,27 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
     step(0, 1, [] {});
   }
 
-  // solve()'s report of its one correction, and advance()'s failures in its order.
-  NewtonReport report;
-  report.iterations = 1;
-  if (!factored) {
-    report.status = Status::kNewtonFailure;
-    report.singular = true;
-    report.correction = std::numeric_limits<double>::infinity();
-  } else if (!std::all_of(parts.begin(), parts.end(),
-                          [](const Part& q) { return q.residual_finite; })) {
-    report.status = Status::kNonFinite;
-  } else {
-    bool finite = true;
-    for (const Part& q : parts) {
-      report.correction = std::max(report.correction, q.correction.size);
-      finite = finite && q.correction.finite;
+  if (thrown) std::rethrow_exception(thrown);
+  if (split_newton_) {
+    // solve()'s report of its one correction.
+    report.iterations = 1;
+    if (!factored) {
+      report.status = Status::kNewtonFailure;
+      report.singular = true;
+      report.correction = std::numeric_limits<double>::infinity();
+    } else if (!std::all_of(parts.begin(), parts.end(),
+                            [](const Part& q) { return q.residual_finite; })) {
+      report.status = Status::kNonFinite;
+    } else {
+      bool finite = true;
+      for (const Part& q : parts) {
+        report.correction = std::max(report.correction, q.correction.size);
+        finite = finite && q.correction.finite;
+      }
+      if (!finite || !std::isfinite(report.correction)) report.status = Status::kNonFinite;
     }
-    if (!finite || !std::isfinite(report.correction)) report.status = Status::kNonFinite;
   }
+  // advance()'s failures in its order.
   if (const Status s = newton_outcome(report, "M + (h^2/4) Hess U"); s != Status::kSuccess)
     return s;
   if (!std::all_of(parts.begin(), parts.end(), [](const Part& q) { return q.position_finite; }))

@@ -133,6 +133,7 @@ class CqMidpointStepper final : public Stepper {
   // The step split by rows (step_by_rows(), from options.row_split_from degrees of freedom): the
   // rows [bounds[p], bounds[p + 1]) of part p, the team's size chosen by timing (TeamChooser).
   bool by_rows_ = false;
+  bool split_newton_ = false;  // a linear step: the Newton solve's passes by rows too
   std::array<Eigen::Index, kRowParts + 1> part_bounds_{};
   TeamChooser row_team_;
   std::size_t row_steps_ = 0, row_team_steps_ = 0;

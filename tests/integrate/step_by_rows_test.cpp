@@ -16,6 +16,11 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
+#include <span>
+#include <stdexcept>
+#include <utility>
+#include <vector>
 
 #include "fracvi/core/state_archive.hpp"
 #include "fracvi/integrate/integrator.hpp"
@@ -25,11 +30,12 @@
 namespace fracvi {
 namespace {
 
-// A fixed linear chain of d masses (uneven, or all 1), 2α = 3/2 Caputo damping with x_0 and v_0
-// both non-zero (x̃ subtracts both), and a load f(t) on every mass.
+// A fixed chain of d masses (uneven, or all 1), linear or with quartic springs (β-FPUT), 2α = 3/2
+// Caputo damping with x_0 and v_0 both non-zero (x̃ subtracts both), and a load f(t) on every mass.
 InitialValueProblem linear_chain(Eigen::Index d, bool unit_mass, std::size_t steps,
                                  double onsite = 0.5, double t_end = 3.0,
-                                 Convention convention = Convention::kCaputo, double alpha = 0.75) {
+                                 Convention convention = Convention::kCaputo, double alpha = 0.75,
+                                 double quartic = 0.0) {
   InitialValueProblem p;
   Eigen::VectorXd masses(d);
   for (Eigen::Index i = 0; i < d; ++i)
@@ -42,7 +48,8 @@ InitialValueProblem linear_chain(Eigen::Index d, bool unit_mass, std::size_t ste
   c.dimension = d;
   c.stiffness = 2.0;
   c.onsite = onsite;
-  c.cubic = c.quartic = 0.0;
+  c.cubic = 0.0;
+  c.quartic = quartic;
   p.model.potential = make_chain_potential(c);
   p.model.forcing = [d](double t, Eigen::Ref<Eigen::VectorXd> f) {
     for (Eigen::Index i = 0; i < d; ++i) f[i] = 0.1 * std::cos(t + 0.01 * static_cast<double>(i));
@@ -86,15 +93,23 @@ Solution run(const InitialValueProblem& p, int threads, Eigen::Index row_split_f
 // threads take four each, three take 2, 3 and 3; 300 steps fill the window (n0 = 16) and run
 // many four-push passes.
 // fvi-bdf2's memory sum has P's force added, on each part's rows: with Riemann–Liouville damping
-// of order 0.6 both of its terms (x_0's and v_0's) are there.
+// of order 0.6 both of its terms (x_0's and v_0's) are there. The β-FPUT chain's Newton solve
+// (1–3 iterations a step, its Jacobian kept from step to step) runs on one thread.
 TEST(StepByRows, PositionsAreTheWholeStepsBitForBitWhateverTheTeam) {
-  for (const auto& [scheme, unit_mass] :
-       {std::pair{"fvi-gl", true}, {"fvi-gl", false}, {"fvi-bdf2", false}}) {
-    SCOPED_TRACE(std::string(scheme) + (unit_mass ? ", M = I" : ", diagonal M"));
+  struct Case {
+    const char* scheme;
+    bool unit_mass;
+    double quartic;
+  };
+  for (const Case c : {Case{"fvi-gl", true, 0.0}, Case{"fvi-gl", false, 0.0},
+                       Case{"fvi-bdf2", false, 0.0}, Case{"fvi-gl", false, 3.0}}) {
+    const char* scheme = c.scheme;
+    SCOPED_TRACE(std::string(scheme) + (c.unit_mass ? ", M = I" : ", diagonal M") +
+                 (c.quartic != 0.0 ? ", β-FPUT" : ""));
     const bool bdf2 = std::string(scheme) == "fvi-bdf2";
-    const InitialValueProblem p =
-        linear_chain(501, unit_mass, 300, 0.5, 3.0,
-                     bdf2 ? Convention::kRiemannLiouville : Convention::kCaputo, bdf2 ? 0.3 : 0.75);
+    const InitialValueProblem p = linear_chain(
+        501, c.unit_mass, 300, 0.5, 3.0, bdf2 ? Convention::kRiemannLiouville : Convention::kCaputo,
+        bdf2 ? 0.3 : 0.75, c.quartic);
     const Solution whole = run(p, 1, kNever, scheme);
     ASSERT_EQ(whole.status, Status::kSuccess) << whole.message;
     EXPECT_FALSE(whole.history_threads.whole_steps);
@@ -132,15 +147,51 @@ TEST(StepByRows, PositionsAreTheWholeStepsBitForBitWhateverTheTeam) {
   }
 }
 
-// Two runs that fail: an unstable potential (on-site stiffness −40, every mode grows like e^{6t};
-// the health check stops it at step 62), and a load that turns NaN at t = 1 (the Newton residual
-// is not finite at step 10). Each ends as the whole steps' run does, on one thread and on two.
+// A chain potential whose gradient throws from t = 1 on (a user's potential failing inside the
+// Newton solve, which the split step runs on one thread of its team).
+class ThrowingChain final : public Potential {
+ public:
+  explicit ThrowingChain(std::shared_ptr<const Potential> chain) : chain_(std::move(chain)) {}
+  [[nodiscard]] Eigen::Index dimension() const override { return chain_->dimension(); }
+  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const override {
+    return chain_->value(x, t);
+  }
+  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+                Eigen::Ref<Eigen::VectorXd> g) const override {
+    if (t > 1.0) throw std::runtime_error("the gradient failed");
+    chain_->gradient(x, t, g);
+  }
+  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+               Eigen::Ref<Eigen::MatrixXd> H) const override {
+    chain_->hessian(x, t, H);
+  }
+  [[nodiscard]] bool has_sparse_hessian() const override { return true; }
+  [[nodiscard]] std::vector<HessianEntry> hessian_pattern() const override {
+    return chain_->hessian_pattern();
+  }
+  void hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+                      std::span<double> values) const override {
+    chain_->hessian_values(x, t, values);
+  }
+
+ private:
+  std::shared_ptr<const Potential> chain_;
+};
+
+// Runs that fail: an unstable potential (on-site stiffness −40, every mode grows like e^{6t};
+// the health check stops it at step 62), a load that turns NaN at t = 1 (the Newton residual is
+// not finite at step 10), and a nonlinear potential that throws at t = 1 (a callback error). Each
+// ends as the whole steps' run does, on one thread and on two.
 TEST(StepByRows, FailuresEndAsTheWholeStepsRunsDo) {
   InitialValueProblem nan_load = linear_chain(300, false, 30);
   nan_load.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
     f.setConstant(t > 1.0 ? std::numeric_limits<double>::quiet_NaN() : 0.1);
   };
-  for (const InitialValueProblem& p : {linear_chain(300, false, 4000, -40.0, 400.0), nan_load}) {
+  InitialValueProblem throwing =
+      linear_chain(300, false, 30, 0.5, 3.0, Convention::kCaputo, 0.75, 1.0);
+  throwing.model.potential = std::make_shared<const ThrowingChain>(throwing.model.potential);
+  for (const InitialValueProblem& p :
+       {linear_chain(300, false, 4000, -40.0, 400.0), nan_load, throwing}) {
     const Solution whole = run(p, 1, kNever);
     ASSERT_NE(whole.status, Status::kSuccess);
     for (const int threads : {1, 2}) {
@@ -157,45 +208,47 @@ TEST(StepByRows, FailuresEndAsTheWholeStepsRunsDo) {
 }
 
 // Checkpoints after each push of the four-push cycle (and at the first step), written on a team
-// of two, resumed on one thread and on two: the rest of the run bit for bit.
+// of two, resumed on one thread and on two: the rest of the run bit for bit, linear and β-FPUT
+// (whose Newton keeps its Jacobian from step to step: the checkpoint carries it).
 TEST(StepByRows, CheckpointsResumeBitForBitOnOneThreadOrTwo) {
-  const InitialValueProblem p = linear_chain(300, false, 120);
-  const Method method = *parse_method("fvi-gl");
-  const Solution reference = integrate(p, method, options_for(2, 64));
-  ASSERT_EQ(reference.status, Status::kSuccess) << reference.message;
-  for (const std::size_t k :
-       {std::size_t{1}, std::size_t{40}, std::size_t{41}, std::size_t{42}, std::size_t{43}}) {
-    Integrator writer_run(p, method, options_for(2, 64));
-    for (std::size_t i = 0; i < k; ++i) ASSERT_EQ(writer_run.step(), Status::kRunning);
-    StateWriter writer;
-    writer_run.visit_state(writer);
-    for (const int threads : {1, 2}) {
-      SCOPED_TRACE("checkpoint after step " + std::to_string(k) + ", resumed on " +
-                   std::to_string(threads));
-      Integrator resumed(p, method, options_for(threads, 64));
-      StateReader reader(writer.bytes(), "test state");
-      resumed.visit_state(reader);
-      reader.finish();
-      resumed.run();
-      const Solution s = resumed.take_solution();
-      EXPECT_EQ(s.status, Status::kSuccess) << s.message;
-      EXPECT_TRUE(same_bits(s.x, reference.x));
-      EXPECT_TRUE(same_bits(s.v, reference.v));
-      EXPECT_TRUE(same_bits(s.balance, reference.balance));
+  for (const double quartic : {0.0, 3.0}) {
+    const InitialValueProblem p =
+        linear_chain(300, false, 120, 0.5, 3.0, Convention::kCaputo, 0.75, quartic);
+    const Method method = *parse_method("fvi-gl");
+    const Solution reference = integrate(p, method, options_for(2, 64));
+    ASSERT_EQ(reference.status, Status::kSuccess) << reference.message;
+    for (const std::size_t k :
+         {std::size_t{1}, std::size_t{40}, std::size_t{41}, std::size_t{42}, std::size_t{43}}) {
+      Integrator writer_run(p, method, options_for(2, 64));
+      for (std::size_t i = 0; i < k; ++i) ASSERT_EQ(writer_run.step(), Status::kRunning);
+      StateWriter writer;
+      writer_run.visit_state(writer);
+      for (const int threads : {1, 2}) {
+        SCOPED_TRACE("checkpoint after step " + std::to_string(k) + ", resumed on " +
+                     std::to_string(threads));
+        Integrator resumed(p, method, options_for(threads, 64));
+        StateReader reader(writer.bytes(), "test state");
+        resumed.visit_state(reader);
+        reader.finish();
+        resumed.run();
+        const Solution s = resumed.take_solution();
+        EXPECT_EQ(s.status, Status::kSuccess) << s.message;
+        EXPECT_TRUE(same_bits(s.x, reference.x));
+        EXPECT_TRUE(same_bits(s.v, reference.v));
+        EXPECT_TRUE(same_bits(s.balance, reference.balance));
+        EXPECT_EQ(s.jacobian_factorizations, reference.jacobian_factorizations);
+      }
     }
   }
 }
 
-// Where the split does not apply, the whole steps run (and say so): a nonlinear chain (Newton
-// iterates), fvi-midpoint (implicit damping), the direct history, d below row_split_from.
-TEST(StepByRows, OnlyLinearCqMidpointStepsWithTheFastHistorySplit) {
-  InitialValueProblem nonlinear = linear_chain(200, false, 40);
-  ChainOptions c;
-  c.dimension = 200;
-  c.quartic = 1.0;
-  nonlinear.model.potential = make_chain_potential(c);
-  EXPECT_FALSE(run(nonlinear, 2, 64).history_threads.whole_steps);
+// Where the split does not apply, the whole steps run (and say so): fvi-midpoint (implicit
+// damping), the direct history, d below row_split_from; a nonlinear chain splits (Newton on one
+// thread).
+TEST(StepByRows, OnlyCqMidpointStepsWithTheFastHistorySplit) {
   const InitialValueProblem p = linear_chain(200, false, 40);
+  EXPECT_TRUE(run(linear_chain(200, false, 40, 0.5, 3.0, Convention::kCaputo, 0.75, 1.0), 2, 64)
+                  .history_threads.whole_steps);
   EXPECT_TRUE(run(p, 2, 64).history_threads.whole_steps);
   EXPECT_TRUE(run(p, 2, 64, "fvi-bdf2").history_threads.whole_steps);
   EXPECT_FALSE(run(p, 2, 64, "fvi-midpoint").history_threads.whole_steps);
