@@ -95,9 +95,9 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
       root_mass_ = health_weights(problem.model.mass);
   }
   g_mid_.setZero(d_);
-  // The step split by rows: the fused passes, the fast history pushed by rows (one thread in
-  // it: the team is the step's); a linear solve whose residual goes by rows, or else Newton's
-  // solve on one thread.
+  // The step split by rows (step_by_rows): the fused passes, the fast history pushed by rows (one
+  // thread in it: the team is the step's); a linear solve whose residual goes by rows, or else
+  // Newton's solve on one thread.
   by_rows_ = fused_passes_ && d_ >= options.row_split_from && use_history_ &&
              options.start != StartValue::kExplicitEuler;
   split_newton_ = newton_.solves_by_rows();
@@ -111,6 +111,7 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
     for (int p = 0; p < kRowParts; ++p) part_bounds_[p] = d_ * p / kRowParts / 8 * 8;
     part_bounds_[kRowParts] = d_;
     row_team_.configure(options.threads, std::min(team_size(options.threads, d_, 1), kRowParts));
+    history_window_ = history_->report().window;
     start_threads(row_team_.team());
   }
 
@@ -349,18 +350,21 @@ Status CqMidpointStepper::advance() {
   return Status::kSuccess;
 }
 
-// The linear step from p⁺_k to the momentum pass, rows [lo, hi) of each of kRowParts parts at a
-// time, in rounds between which every part's rows must be done: (1) p⁺_k and h p⁺_k, the
-// predictor, the midpoint; (2) the residual (the potential's gradient reads the neighbouring
-// rows' midpoints); then the linear solve, on one thread (the tridiagonal solve is bound by its
-// recurrences' latency: in two halves on two threads each half took as long as the whole, and on
-// one thread the halves took twice as long; bench/RESULTS.md); (3) the correction, x_{k+1},
-// p⁻_{k+1} and x̃_{k+1}; (4), unless some values are non-finite, the history's push and the
-// momentum pass. Every element's operations are advance()'s, so the trajectory is the same bit
-// for bit whatever the team (and as with the whole passes); the sums are formed part by part and
-// added in part order, so they too are the same for any team (and differ from the whole passes'
-// in their last bits). Each part's rows stay on one core: at d = 10^4 its share of the history's
-// state (≈ 1 MB) fits the core's L2, where the whole state did not (bench/RESULTS.md).
+// The step from p⁺_k to the momentum pass, rows [lo, hi) of each of kRowParts parts at a time,
+// in rounds between which every part's rows must be done: (1) p⁺_k and h p⁺_k, the predictor,
+// and for a linear step (split_newton_) the midpoint — formed at the end of the previous step's
+// rounds when it was split too; (2) a linear step's residual (the potential's gradient reads the
+// neighbouring rows' midpoints), then its solve on one thread (the tridiagonal solve is bound by
+// its recurrences' latency: in two halves on two threads each half took as long as the whole,
+// and on one thread the halves took twice as long; bench/RESULTS.md) — or else Newton's whole
+// solve on one thread (its iterations, kept Jacobian and stopping rule as in advance()); (3) a
+// linear step's correction, and x_{k+1}, p⁻_{k+1} and x̃_{k+1}; (4), unless some values are
+// non-finite, the history's push, the momentum pass and the next step's round (1). Every
+// element's operations are advance()'s, so the trajectory is the same bit for bit whatever the
+// team (and as with the whole passes); the sums are formed part by part and added in part order,
+// so they too are the same for any team (and differ from the whole passes' in their last bits).
+// Each part's rows stay on one core: at d = 10^4 a half of the history's state (≈ 1 MB) fits the
+// core's L2, where the whole state did not (bench/RESULTS.md).
 Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumPass& momentum,
                                        double& mass_squares) {
   const std::size_t k = k_;
@@ -391,6 +395,10 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
   // history as it was).
   if (factored) history_->begin_row_push(x_tilde_.data());
 
+  // The steps before the history's window is full skip its recursions: the choice measures
+  // again from the first step with them (as the history's own team does; a first trial of one
+  // thread on those cheap steps lost the team a whole hold at d = 2·10^4).
+  if (history_->size() == history_window_) row_team_.restart();
   const int threads = row_team_.measuring()
                           ? row_team_.next_by_period(std::chrono::steady_clock::now())
                           : row_team_.next();

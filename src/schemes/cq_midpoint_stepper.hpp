@@ -68,9 +68,10 @@ class CqMidpointStepper final : public Stepper {
 
  private:
   Status advance() override;
-  // advance() from p⁺_k to the momentum pass by rows (by_rows_): the Newton solve's passes, the
-  // position pass, the history's push and the momentum pass, each on the rows of kRowParts parts,
-  // the parts on one thread or split over a team; the linear solve on one thread. The
+  // advance() from p⁺_k to the momentum pass by rows (by_rows_): a linear step's Newton passes
+  // (split_newton_; else Newton's solve on one thread), the position pass, the history's push
+  // and the momentum pass, each on the rows of kRowParts parts, the parts on one thread or split
+  // over a team; the linear solve on one thread. The
   // momentum pass reads the memory sum where the history keeps it. momentum and mass_squares: the
   // passes' sums, part by part, added in part order (whatever the team).
   Status step_by_rows(const Eigen::VectorXd* forcing, MomentumPass& momentum, double& mass_squares);
@@ -133,10 +134,11 @@ class CqMidpointStepper final : public Stepper {
   // The step split by rows (step_by_rows(), from options.row_split_from degrees of freedom): the
   // rows [bounds[p], bounds[p + 1]) of part p, the team's size chosen by timing (TeamChooser).
   bool by_rows_ = false;
-  bool split_newton_ = false;  // a linear step: the Newton solve's passes by rows too
+  bool split_newton_ = false;  // MidpointNewton::solves_by_rows: its passes by rows too
   std::array<Eigen::Index, kRowParts + 1> part_bounds_{};
   TeamChooser row_team_;
   std::size_t row_steps_ = 0, row_team_steps_ = 0;
+  std::size_t history_window_ = 0;  // n0: from this many values on, pushes run the recursions
   bool next_started_ = false;  // the last split step formed p⁺_k, h p⁺_k and the midpoint of k_
 };
 

@@ -76,9 +76,9 @@ inline constexpr double kMaxHistoryTolerance = 1e-3;
 inline constexpr double kAutoHistoryTolerance = 0.0;
 
 /// IntegratorOptions::row_split_from's default, measured on the 2-vCPU machine of bench/RESULTS.md
-/// (examples/fractional_chain.toml, two threads against one, 2026-12-02): 14.0 against 9.3 µs a
-/// step at d = 1000, even at 2048 (21.4 against 21.7), ahead from 3000 (27.5 against 29.0; 35.8
-/// against 45.7 at 4096, 71 against 123–135 at 10^4).
+/// (examples/fractional_chain.toml, `fvi-gl`, two threads forced against one, µs a step,
+/// 2026-12-02): 14.0 against 9.3 at d = 1000, even at 2048 (21.4 against 21.7), ahead from 3072
+/// (28.7–29.6 against 32.9–33.0; 35.8 against 45.7 at 4096).
 inline constexpr Eigen::Index kRowSplitFrom = 3072;
 
 struct IntegratorOptions {
@@ -157,13 +157,15 @@ struct IntegratorOptions {
   /// the run and keep the faster (internal/team_chooser.hpp); n ≥ 1 = n threads; small systems
   /// run on one thread regardless.
   int threads = 0;
-  /// The dimension from which a linear `fvi-gl` step with diagonal M and R, the fast history and a
-  /// potential with Potential::gradient_rows() (the chains) runs split by rows over the threads:
-  /// each thread takes half of the rows of every pass and of the history, only the tridiagonal
-  /// solve stays on one thread (docs/large-systems.md). The trajectory is the same bit for bit
-  /// with or without the split, and whatever the threads; the diagnostics' sums (energy, balance)
-  /// are formed half by half, so they differ from the whole steps' in their last bits. Measured
-  /// default: kRowSplitFrom; tests set it to compare both paths. Must be ≥ 1.
+  /// The dimension from which an `fvi-gl` or `fvi-bdf2` step with diagonal M and R and the fast
+  /// history runs split by rows over the threads: each thread of the team takes its share of the
+  /// rows of every pass and of the history's push (kRowParts parts of the rows), and only the
+  /// linear solve stays on one thread — for a linear potential with Potential::gradient_rows()
+  /// (the chains) just the tridiagonal solve, otherwise Newton's whole solve
+  /// (docs/large-systems.md). The trajectory is the same bit for bit with or without the split and
+  /// whatever the threads; the diagnostics' sums (energy, balance, the health check's norm) are
+  /// formed part by part, the same for every team, and differ from the whole steps' in their last
+  /// bits. Measured default: kRowSplitFrom; tests set it to compare both paths. Must be ≥ 1.
   Eigen::Index row_split_from = kRowSplitFrom;
   /// Polled before every step (and by the companion runs of the error estimate): when it returns
   /// true the run stops there with Status::kInterrupted, the trajectory so far kept. `fracvi run`
