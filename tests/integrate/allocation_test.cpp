@@ -209,18 +209,26 @@ TEST_F(NoAllocation, BandedChainWithThreadedFastHistory) {
   }
 }
 
-// The linear chain's step split by rows over the threads (CqMidpointStepper::step_by_rows): one
-// parallel region a step, OpenMP's team started at set-up; threads = 0 switches between one
-// thread and the team.
-TEST_F(NoAllocation, LinearChainStepByRows) {
-  for (const int threads : {0, 2, 1}) {
-    IntegratorOptions options;
-    options.history = HistoryKind::kFast;
-    options.threads = threads;
-    options.row_split_from = 1000;
-    Integrator integ(large_chain(4000, 200, 1, 0.0), fvi_gl(), options);
-    EXPECT_EQ(allocations_while_stepping(integ), 0u) << "threads = " << threads;
-    EXPECT_TRUE(integ.take_solution().history_threads.whole_steps) << "threads = " << threads;
+// The chain's step split by rows over the threads (CqMidpointStepper::step_by_rows): one parallel
+// region a step, OpenMP's team started at set-up; threads = 0 switches between one thread and
+// the team. Linear (the residual by rows) and β-FPUT (Newton on one thread, refactoring its
+// banded Jacobian in the counted steps).
+TEST_F(NoAllocation, ChainStepByRows) {
+  for (const double quartic : {0.0, 1.0}) {
+    for (const int threads : {0, 2, 1}) {
+      IntegratorOptions options;
+      options.history = HistoryKind::kFast;
+      options.threads = threads;
+      options.row_split_from = 1000;
+      Integrator integ(large_chain(4000, 200, 1, quartic), fvi_gl(), options);
+      EXPECT_EQ(allocations_while_stepping(integ), 0u)
+          << "threads = " << threads << ", quartic = " << quartic;
+      const Solution solution = integ.take_solution();
+      EXPECT_TRUE(solution.history_threads.whole_steps) << "threads = " << threads;
+      if (quartic != 0.0) {
+        EXPECT_GE(solution.jacobian_factorizations, 1u);
+      }
+    }
   }
 }
 
