@@ -391,7 +391,7 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
   const bool started = next_started_;
   next_started_ = false;
   const bool start_next = k + 1 < n_steps_;
-  // Begun before the rounds (only its bookkeeping: a step that fails before round 5 leaves the
+  // Begun before the rounds (only its bookkeeping: a step that fails before round (4) leaves the
   // history as it was).
   if (factored) history_->begin_row_push(x_tilde_.data());
 

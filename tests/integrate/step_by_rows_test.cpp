@@ -1,16 +1,16 @@
-// The linear `fvi-gl` and `fvi-bdf2` step split by rows over a team
-// (CqMidpointStepper::step_by_rows, from IntegratorOptions::row_split_from degrees of freedom):
+// The `fvi-gl` and `fvi-bdf2` step split by rows over a team (CqMidpointStepper::step_by_rows,
+// from IntegratorOptions::row_split_from degrees of freedom), on linear and β-FPUT chains:
 //
 //  * positions and velocities are the whole steps' bit for bit, on one thread, a team of two and
 //    the timed choice; the diagnostics (energy, dissipated work, balance), formed part by part,
 //    are the same bit for bit whatever the team and within round-off of the whole steps';
-//  * a run that fails (the health check, a non-finite residual) ends as the whole steps' run does
-//    (status, message, step, stored rows);
+//  * a run that fails (the health check, a non-finite residual, a potential that throws) ends as
+//    the whole steps' run does (status, message, step, stored rows);
 //  * a checkpoint taken on a team of two resumes bit for bit on one thread or two, after each
-//    push of the fast history's four-push cycle;
+//    push of the fast history's four-push cycle (and with Newton's kept Jacobian);
 //  * the split is reported (summary's history_threads.whole_steps) and taken only where it
-//    applies (linear potential with gradient_rows, diagonal M and R, fvi-gl or fvi-bdf2, the
-//    fast history).
+//    applies (fvi-gl or fvi-bdf2, diagonal M and R, the fast history; a linear chain's residual by
+//    rows too, a nonlinear one's Newton solve on one thread).
 #include <gtest/gtest.h>
 
 #include <cmath>
