@@ -238,13 +238,17 @@ Command add_run_command(CLI::App& parent) {
           const double share = use.pushes > 0 ? 100.0 * static_cast<double>(use.team_pushes) /
                                                     static_cast<double>(use.pushes)
                                               : 0.0;
+          // Whole steps split by rows (docs/large-systems.md), or the history's pushes alone.
+          const char* label = use.whole_steps ? "step threads   " : "history threads";
+          const char* unit = use.whole_steps ? "steps, split by rows" : "pushes";
           if (use.measured) {
             std::printf(
-                "  history threads   %d measured against 1: on %d for %.0f %% of the pushes (%zu "
-                "of %zu trials won, %zu lost again to a slow spell)\n",
-                use.team, use.team, share, use.team_won, use.decisions, use.team_dropped);
+                "  %s   %d measured against 1: on %d for %.0f %% of the %s (%zu of %zu trials "
+                "won, %zu lost again to a slow spell)\n",
+                label, use.team, use.team, share, unit, use.team_won, use.decisions,
+                use.team_dropped);
           } else {
-            std::printf("  history threads   %d as set (%.0f %% of the pushes)\n", use.team, share);
+            std::printf("  %s   %d as set (%.0f %% of the %s)\n", label, use.team, share, unit);
           }
         }
       } else if (solution.history != "none") {

@@ -378,6 +378,20 @@ class Run(unittest.TestCase):
             self.assertFalse(use["measured"])
             self.assertEqual(("history threads   2 as set (100 % of the pushes)" in r.stdout),
                              team == 2, r.stdout)
+            self.assertFalse(use["whole_steps"])
+        # From 3072 masses the whole step is split by rows (IntegratorOptions::row_split_from):
+        # the team counts steps, and the terminal says so.
+        out = os.path.join(self.dir, "rows")
+        r = run("run", chain, "--out", out, "--no-plot", "--set", "time.steps=200", "--set",
+                "time.end=2", "--set", "model.dim=4000", "--set", 'method.history="fast"', "--set",
+                "method.threads=2", "--set", 'method.error_estimate="none"', "--set",
+                'method.mirror="off"')
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+            use = json.load(f)["history_threads"]
+        self.assertTrue(use["whole_steps"])
+        self.assertEqual((use["team"], use["pushes"], use["team_pushes"]), (2, 200, 200))
+        self.assertIn("step threads      2 as set (100 % of the steps, split by rows)", r.stdout)
 
     def test_problem_file_every_and_default_directory(self):
         path = self.write(PROBLEM + "[output]\nevery = 100\n")
