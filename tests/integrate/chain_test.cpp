@@ -216,36 +216,8 @@ TEST(Chain, StoringEveryNthStepKeepsTheSameRows) {
   EXPECT_LE(thin.mirror_error, full.mirror_error);
 }
 
-// A potential that throws from t = 0.0655 on: the run stops at step 7, the stored rows are the
-// steps 0 and 5 and the last completed one (7).
-class ThrowingLater final : public Potential {
- public:
-  explicit ThrowingLater(std::shared_ptr<const Potential> inner) : inner_(std::move(inner)) {}
-  [[nodiscard]] Eigen::Index dimension() const override { return inner_->dimension(); }
-  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const override {
-    return inner_->value(x, t);
-  }
-  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
-                Eigen::Ref<Eigen::VectorXd> g) const override {
-    if (t > 0.0655) throw std::runtime_error("out of range");
-    inner_->gradient(x, t, g);
-  }
-  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
-               Eigen::Ref<Eigen::MatrixXd> h) const override {
-    inner_->hessian(x, t, h);
-  }
-  [[nodiscard]] bool has_sparse_hessian() const override { return true; }
-  [[nodiscard]] std::vector<HessianEntry> hessian_pattern() const override {
-    return inner_->hessian_pattern();
-  }
-  void hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
-                      std::span<double> values) const override {
-    inner_->hessian_values(x, t, values);
-  }
-
- private:
-  std::shared_ptr<const Potential> inner_;
-};
+// A potential that throws from t = 0.0655 on (test::ThrowingAfter): the run stops at step 7, the
+// stored rows are the steps 0 and 5 and the last completed one (7).
 
 TEST(Chain, FailureBetweenStoredRowsKeepsTheLastStep) {
   ChainSetup s;
@@ -253,7 +225,7 @@ TEST(Chain, FailureBetweenStoredRowsKeepsTheLastStep) {
   s.t_end = 1.0;
   s.steps = 100;  // h = 0.01: step k evaluates ∇U at t_{k+½}
   InitialValueProblem p = chain_problem(s);
-  p.model.potential = std::make_shared<const ThrowingLater>(p.model.potential);
+  p.model.potential = std::make_shared<const test::ThrowingAfter>(p.model.potential, 0.0655);
   IntegratorOptions o;
   o.save_every = 5;
   const Solution sol = integrate(p, fvi_gl(), o);

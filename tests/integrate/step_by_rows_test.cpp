@@ -22,6 +22,7 @@
 #include <utility>
 #include <vector>
 
+#include "../support/test_potentials.hpp"
 #include "fracvi/core/state_archive.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/chain_potential.hpp"
@@ -147,37 +148,6 @@ TEST(StepByRows, PositionsAreTheWholeStepsBitForBitWhateverTheTeam) {
   }
 }
 
-// A chain potential whose gradient throws from t = 1 on (a user's potential failing inside the
-// Newton solve, which the split step runs on one thread of its team).
-class ThrowingChain final : public Potential {
- public:
-  explicit ThrowingChain(std::shared_ptr<const Potential> chain) : chain_(std::move(chain)) {}
-  [[nodiscard]] Eigen::Index dimension() const override { return chain_->dimension(); }
-  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const override {
-    return chain_->value(x, t);
-  }
-  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
-                Eigen::Ref<Eigen::VectorXd> g) const override {
-    if (t > 1.0) throw std::runtime_error("the gradient failed");
-    chain_->gradient(x, t, g);
-  }
-  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
-               Eigen::Ref<Eigen::MatrixXd> H) const override {
-    chain_->hessian(x, t, H);
-  }
-  [[nodiscard]] bool has_sparse_hessian() const override { return true; }
-  [[nodiscard]] std::vector<HessianEntry> hessian_pattern() const override {
-    return chain_->hessian_pattern();
-  }
-  void hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
-                      std::span<double> values) const override {
-    chain_->hessian_values(x, t, values);
-  }
-
- private:
-  std::shared_ptr<const Potential> chain_;
-};
-
 // Runs that fail: an unstable potential (on-site stiffness −40, every mode grows like e^{6t};
 // the health check stops it at step 62), a load that turns NaN at t = 1 (the Newton residual is
 // not finite at step 10), and a nonlinear potential that throws at t = 1 (a callback error). Each
@@ -189,7 +159,8 @@ TEST(StepByRows, FailuresEndAsTheWholeStepsRunsDo) {
   };
   InitialValueProblem throwing =
       linear_chain(300, false, 30, 0.5, 3.0, Convention::kCaputo, 0.75, 1.0);
-  throwing.model.potential = std::make_shared<const ThrowingChain>(throwing.model.potential);
+  throwing.model.potential =
+      std::make_shared<const test::ThrowingAfter>(throwing.model.potential, 1.0);
   for (const InitialValueProblem& p :
        {linear_chain(300, false, 4000, -40.0, 400.0), nan_load, throwing}) {
     const Solution whole = run(p, 1, kNever);
@@ -205,6 +176,7 @@ TEST(StepByRows, FailuresEndAsTheWholeStepsRunsDo) {
       EXPECT_TRUE(same_bits(split.t, whole.t));
     }
   }
+  EXPECT_EQ(run(throwing, 2, 64).status, Status::kCallbackError);
 }
 
 // Checkpoints after each push of the four-push cycle (and at the first step), written on a team

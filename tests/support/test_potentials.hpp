@@ -7,7 +7,10 @@
 #include <Eigen/Dense>
 #include <cmath>
 #include <memory>
+#include <span>
+#include <stdexcept>
 #include <utility>
+#include <vector>
 
 #include "fracvi/model/potential.hpp"
 
@@ -57,6 +60,39 @@ class PendulumChain final : public Potential {
 inline std::shared_ptr<const Potential> pendulum_pair() {
   return std::make_shared<const PendulumChain>(Eigen::VectorXd{{9.81, 4.0}}, 2.0);
 }
+
+// A potential (with a sparse Hessian) whose gradient throws from time `from` on: a user's callback
+// failing in the middle of a run.
+class ThrowingAfter final : public Potential {
+ public:
+  ThrowingAfter(std::shared_ptr<const Potential> inner, double from)
+      : inner_(std::move(inner)), from_(from) {}
+  [[nodiscard]] Eigen::Index dimension() const override { return inner_->dimension(); }
+  [[nodiscard]] double value(const Eigen::Ref<const Eigen::VectorXd>& x, double t) const override {
+    return inner_->value(x, t);
+  }
+  void gradient(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+                Eigen::Ref<Eigen::VectorXd> g) const override {
+    if (t > from_) throw std::runtime_error("out of range");
+    inner_->gradient(x, t, g);
+  }
+  void hessian(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+               Eigen::Ref<Eigen::MatrixXd> h) const override {
+    inner_->hessian(x, t, h);
+  }
+  [[nodiscard]] bool has_sparse_hessian() const override { return true; }
+  [[nodiscard]] std::vector<HessianEntry> hessian_pattern() const override {
+    return inner_->hessian_pattern();
+  }
+  void hessian_values(const Eigen::Ref<const Eigen::VectorXd>& x, double t,
+                      std::span<double> values) const override {
+    inner_->hessian_values(x, t, values);
+  }
+
+ private:
+  std::shared_ptr<const Potential> inner_;
+  double from_;
+};
 
 /// U∘Λ for Theorem 4.3: value U(Λz), gradient Λᵀ∇U(Λz), Hessian Λᵀ∇²U(Λz)Λ.
 class TransformedPotential final : public Potential {
