@@ -8,7 +8,6 @@
 #include "power_differences.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <boost/math/special_functions/gamma.hpp>
 #include <chrono>
 #include <cmath>
@@ -98,8 +97,10 @@ CqMidpointStepper::CqMidpointStepper(const InitialValueProblem& problem,
   // The step split by rows (step_by_rows): the fused passes, the fast history pushed by rows (one
   // thread in it: the team is the step's); a linear solve whose residual goes by rows, or else
   // Newton's solve on one thread.
-  by_rows_ = fused_passes_ && d_ >= options.row_split_from && use_history_ &&
-             options.start != StartValue::kExplicitEuler;
+  // (From kVectorPassesFrom on, whatever row_split_from: the split's momentum pass forms the
+  // energy account's F·v and F·M⁻¹F, which advance() reads only from there.)
+  by_rows_ = fused_passes_ && d_ >= std::max(options.row_split_from, kVectorPassesFrom) &&
+             use_history_ && options.start != StartValue::kExplicitEuler;
   split_newton_ = newton_.solves_by_rows();
   if (by_rows_) {
     history_->set_threads(1);
