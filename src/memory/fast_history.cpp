@@ -171,6 +171,7 @@ void recursion_block(const internal::FastHistoryBlock& blk) {
 // v3, d = 1000, K = 24, µs a push; bench/RESULTS.md): 1 step a pass 4.6, 2 steps 3.5, 4 steps 2.2,
 // 8 steps 2.1 — from 4 on the pass is bound by its multiply–adds, no longer by moving the state.
 constexpr int kPassSteps = 4;
+static_assert(FastHistory::kAheadGroups <= kPassSteps);  // a group's pass: a tails_ column a push
 
 // Up to kPassSteps pushes' recursions in one pass over the state (FastHistory::push, when one
 // thread runs them and no push is run ahead): the leaving values of pushes k, k + 1, … enter every
@@ -494,6 +495,7 @@ void FastHistory::push(const Eigen::Ref<const Eigen::VectorXd>& x_tilde) {
     return;
   }
   begin_row_push(x_tilde.data());
+  if (pending_.by_groups) rows_ahead(0, 1);
   // A team of two runs the next push ahead (the caller only makes the window's last addition); a
   // larger team splits the rows.
   internal::for_blocks(d, pending_.turn.split,
@@ -515,6 +517,33 @@ void FastHistory::begin_row_push(const double* x_tilde) {
   // (mod n0) with first = (k + 1) mod n0; before k = n0 − 1 the missing ones are the zeros the
   // ring was cleared to.
   p.first = static_cast<Eigen::Index>((size_ + 1) % n0);
+  p.own = tail_column_;
+  p.by_groups = by_groups_ && size_ >= n0;
+  if (p.by_groups) {
+    // Group q's turn is at the pushes k ≡ q (mod groups_): its pass runs the recursions and older
+    // windows of pushes k … k + groups_ − 1 (push k + s's older window ends with x̃_{k+s−g}, g ≥
+    // groups_, so x̃_k is not needed). A group whose ready pushes ran out before its turn (the
+    // first push with recursions, a loaded checkpoint) gets a pass up to its turn.
+    group_pass_count_ = 0;
+    for (int q = 0; q < groups_; ++q) {
+      const auto turn_in = static_cast<int>(
+          (static_cast<std::size_t>(q) + groups_ - size_ % static_cast<std::size_t>(groups_)) %
+          static_cast<std::size_t>(groups_));
+      if (turn_in != 0 && group_ready_[q] > 0) continue;
+      const auto target = static_cast<int>(
+          std::min(static_cast<std::size_t>(turn_in == 0 ? groups_ : turn_in), capacity_ - size_));
+      if (target > group_ready_[q]) {
+        group_passes_[group_pass_count_++] = {group_bounds_[q], group_bounds_[q + 1],
+                                              group_ready_[q], target - group_ready_[q]};
+        group_ready_[q] = target;
+      }
+    }
+    p.turn = run_ahead_.begin(size_, n0, capacity_, true);
+    p.turn.ahead = true;  // push_rows() adds x̃ alone
+    p.run_recursions = false;
+    p.steps = 1;
+    return;
+  }
   // The next push's recursions ran in an earlier pass (later_ > 0): no thread runs them again.
   p.turn = run_ahead_.begin(size_, n0, capacity_, later_ > 0);
   // One thread runs this push's recursions and no thread runs the next push's: run the next
@@ -530,7 +559,87 @@ void FastHistory::begin_row_push(const double* x_tilde) {
                 ? static_cast<int>(std::min(
                       {static_cast<std::size_t>(kPassSteps), capacity_ - size_, n0, gap + 1}))
                 : 1;
-  p.own = tail_column_;
+}
+
+void FastHistory::rows_ahead(int share, int shares) {
+  assert(pending_.by_groups && shares >= 1 && share >= 0 && share < shares);
+  for (int i = 0; i < group_pass_count_; ++i) {
+    const GroupPass& pass = group_passes_[i];
+    // Contiguous shares of whole cache lines (8 rows).
+    const Eigen::Index n = pass.hi - pass.lo;
+    const Eigen::Index lo = pass.lo + n * share / shares / 8 * 8;
+    const Eigen::Index hi =
+        share + 1 == shares ? pass.hi : pass.lo + n * (share + 1) / shares / 8 * 8;
+    group_pass(pass, lo, hi);
+  }
+}
+
+void FastHistory::group_pass(const GroupPass& pass, Eigen::Index lo, Eigen::Index hi) {
+  // The one-thread pass of several pushes (push_rows with steps > 1) on these rows, with the
+  // older windows of all of them: push k + s's leaving value x̃_{k+s−n0} is in ring column
+  // (k + s) mod n0, its window starts at column (k + s + 1) mod n0, its tail is tails_ column
+  // (tail_column_ + s) mod kPassSteps.
+  const auto n0 = static_cast<std::size_t>(window_);
+  const Eigen::Index terms = state_.cols();
+  for (Eigen::Index b = lo; b < hi; b += kBlock) {
+    const Eigen::Index n = std::min(kBlock, hi - b);
+    const double* leaving[kPassSteps];
+    double* tails[kPassSteps];
+    internal::FastHistoryBlock pushes[kPassSteps];
+    for (int s = 0; s < pass.steps; ++s) {
+      const std::size_t k = size_ + static_cast<std::size_t>(pass.from + s);
+      const auto column = (tail_column_ + pass.from + s) % kPassSteps;
+      pushes[s] = block(b, n, terms, static_cast<Eigen::Index>(k % n0),
+                        static_cast<Eigen::Index>((k + 1) % n0), nullptr, column);
+      leaving[s] = pushes[s].leaving;
+      tails[s] = pushes[s].tail;
+    }
+    if (pass.steps == 1) {
+      recursion_block(pushes[0]);
+    } else {
+      recursion_block_steps(pushes[0], pass.steps, leaving, tails);
+    }
+    for (int s = 0; s < pass.steps; ++s) older_window_block(pushes[s]);
+  }
+}
+
+void FastHistory::even_groups() {
+  const int most = *std::max_element(group_ready_.begin(), group_ready_.begin() + groups_);
+  if (most - 1 > kPassSteps - 2) {
+    throw std::logic_error("FastHistory: a push begun by rows was not ended");
+  }
+  for (int q = 0; q < groups_; ++q) {
+    if (group_ready_[q] < most) {
+      const GroupPass pass{group_bounds_[q], group_bounds_[q + 1], group_ready_[q],
+                           most - group_ready_[q]};
+      group_pass(pass, pass.lo, pass.hi);
+      group_ready_[q] = most;
+    }
+  }
+  later_ = most > 0 ? static_cast<std::size_t>(most - 1) : 0;
+  run_ahead_.set_ahead(most > 0);
+}
+
+void FastHistory::set_rows_ahead(bool on) {
+  if (on == by_groups_) return;
+  if (!pushes_rows()) throw std::logic_error("FastHistory: rows ahead without a push by rows");
+  run_ahead_.finish();
+  if (on) {
+    // As many groups as pushes a pass can run ahead (4, or 1 when n0 is not a multiple of 4).
+    groups_ =
+        static_cast<int>(std::min(Eigen::Index{kAheadGroups}, window_ - newest_start(window_)));
+    const Eigen::Index d = ring_.rows();
+    for (int q = 0; q < groups_; ++q) group_bounds_[q] = d * q / groups_ / 8 * 8;
+    group_bounds_[groups_] = d;
+    const int ready = run_ahead_.ahead() ? static_cast<int>(later_) + 1 : 0;
+    std::fill(group_ready_.begin(), group_ready_.end(), ready);
+    later_ = 0;
+    run_ahead_.set_ahead(false);
+  } else {
+    even_groups();
+  }
+  group_pass_count_ = 0;
+  by_groups_ = on;
 }
 
 void FastHistory::push_rows(Eigen::Index lo, Eigen::Index hi) {
@@ -574,6 +683,12 @@ void FastHistory::push_rows(Eigen::Index lo, Eigen::Index hi) {
 void FastHistory::end_row_push() {
   const RowPush& p = pending_;
   ++size_;
+  if (p.by_groups) {
+    for (int q = 0; q < groups_; ++q) --group_ready_[q];
+    tail_column_ = (p.own + 1) % kPassSteps;
+    run_ahead_.end(p.turn, p.first, p.first);  // posts nothing (next_ran)
+    return;
+  }
   if (p.steps > 1) later_ = static_cast<std::size_t>(p.steps - 1);  // it was 0: this push not ahead
   const bool next_ran = later_ > 0;  // the next push's tail is complete
   if (next_ran) {
@@ -596,6 +711,7 @@ void FastHistory::configure_threads(int threads) {
 }
 
 void FastHistory::set_threads(int threads) {
+  if (by_groups_ && threads != 1) set_rows_ahead(false);
   configure_threads(threads);
 }
 
@@ -611,6 +727,9 @@ void FastHistory::visit_state(StateArchive& archive) {
   // The fit (λ_j, w_j, the window's exact weights) is rebuilt by the constructor from the same
   // options; its sizes are checked so that a checkpoint of another fit is refused.
   run_ahead_.finish();
+  // Run ahead by row groups, the groups are first brought even (the same numbers), so that the
+  // records are those of the pushes without groups.
+  if (by_groups_ && !archive.loading()) even_groups();
   archive.expect("fast.dimension", static_cast<std::size_t>(ring_.rows()));
   archive.expect("fast.capacity", capacity_);
   archive.expect("fast.window", static_cast<std::size_t>(window_));
@@ -665,6 +784,12 @@ void FastHistory::visit_state(StateArchive& archive) {
                           " does not fit the state (at most " + std::to_string(kPassSteps - 2) +
                           ", with 'fast.ahead' set and the pushes within the capacity)");
   }
+  if (by_groups_) {  // the groups' ready pushes from the records' form
+    std::fill(group_ready_.begin(), group_ready_.end(), ahead ? static_cast<int>(later_) + 1 : 0);
+    later_ = 0;
+    run_ahead_.set_ahead(false);
+    group_pass_count_ = 0;
+  }
 }
 
 void FastHistory::clear() {
@@ -674,6 +799,8 @@ void FastHistory::clear() {
   tails_.setZero();
   tail_column_ = 0;
   later_ = 0;
+  group_ready_.fill(0);
+  group_pass_count_ = 0;
   sum_.setZero();
   size_ = 0;
   run_ahead_.reset();

@@ -121,6 +121,14 @@ void History::end_row_push() {
   throw std::logic_error(std::string(kind()) + " history: no push split by rows");
 }
 
+void History::set_rows_ahead(bool) {
+  throw std::logic_error(std::string(kind()) + " history: no push split by rows");
+}
+
+void History::rows_ahead(int, int) {
+  throw std::logic_error(std::string(kind()) + " history: no push split by rows");
+}
+
 std::optional<HistoryKind> parse_history_kind(std::string_view name) {
   if (name == "auto") return HistoryKind::kAuto;
   if (name == "direct") return HistoryKind::kDirect;

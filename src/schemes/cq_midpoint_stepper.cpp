@@ -392,10 +392,6 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
   const bool started = next_started_;
   next_started_ = false;
   const bool start_next = k + 1 < n_steps_;
-  // Begun before the rounds (only its bookkeeping: a step that fails before round (4) leaves the
-  // history as it was).
-  if (factored) history_->begin_row_push(x_tilde_.data());
-
   // The steps before the history's window is full skip its recursions: the choice measures
   // again from the first step with them (as the history's own team does; a first trial of one
   // thread on those cheap steps lost the team a whole hold at d = 2·10^4).
@@ -405,6 +401,14 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
                           : row_team_.next();
   ++row_steps_;
   if (threads > 1) ++row_team_steps_;
+  // With Newton's solve on one thread, the team's other threads run the history's work that does
+  // not need x̃_{k+1} meanwhile (History::set_rows_ahead). One thread keeps the push's own passes:
+  // after the solve, the groups' passes made its next solve's residual slower (one thread,
+  // β-FPUT d = 10^4: 155 against 146 µs a step; bench/RESULTS.md).
+  if (!split_newton_) history_->set_rows_ahead(threads > 1);
+  // Begun before the rounds (only its bookkeeping: a step that fails before round (4) leaves the
+  // history as it was).
+  if (factored) history_->begin_row_push(x_tilde_.data());
   // Thread `me` of `team` runs the parts [me P/team, (me + 1) P/team), P = kRowParts; `barrier`
   // waits for the team.
   auto step = [&](int me, int team, auto&& barrier) {
@@ -430,12 +434,16 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
       });
       barrier();
       if (me == 0) newton_.solve_residual();
-    } else if (me == 0) {
-      try {
-        report = newton_.solve(x_cur_, t_half, rhs_, forcing, dx_);
-      } catch (...) {
-        thrown = std::current_exception();
+    } else {
+      if (me == 0) {
+        try {
+          report = newton_.solve(x_cur_, t_half, rhs_, forcing, dx_);
+        } catch (...) {
+          thrown = std::current_exception();
+        }
       }
+      // Meanwhile the other threads run the history's work that does not need x̃_{k+1}.
+      if (me > 0) history_->rows_ahead(me - 1, team - 1);
     }
     barrier();
     if (thrown || report.status != Status::kSuccess) return;

@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
+#include <memory>
 #include <random>
 #include <span>
 #include <stdexcept>
@@ -664,6 +665,81 @@ TEST(FastHistory, PushesByRowsArePushesBitForBit) {
   DirectHistory direct(1.5, d, 10);
   EXPECT_FALSE(direct.pushes_rows());
   EXPECT_THROW(direct.begin_row_push(xs.col(0).data()), std::logic_error);
+}
+
+// Pushes run ahead by row groups (History::set_rows_ahead: the step by rows whose Newton solve
+// runs on one thread) give push()'s numbers bit for bit: with windows of 8 and the default (four
+// groups, each group's pass running four pushes, the first push with recursions bringing the
+// groups to their turns) and of 3 (one group, a push at a time); the work shared three ways in
+// reverse order; the last pushes' passes cut at the capacity; switched off and on mid-run; a
+// checkpoint taken in the middle of the groups' cycle restored to a history with groups and to one
+// without, both continuing bit for bit.
+TEST(FastHistory, PushesAheadByGroupsArePushesBitForBit) {
+  const Eigen::Index d = 301;
+  const std::size_t n = 150;
+  const Eigen::MatrixXd xs = rough_sequence(static_cast<Eigen::Index>(n), d, 53u);
+  for (const std::size_t window : {std::size_t{0}, std::size_t{8}, std::size_t{3}}) {
+    ExponentialFitOptions o;
+    o.order = 1.5;
+    o.max_lag = fast_history_fit_lag(n);
+    o.window = window;
+    const auto fit = shared_exponential_fit(o);
+    SCOPED_TRACE("n0 = " + std::to_string(fit->window));
+    FastHistory whole(fit, d, n), ahead(fit, d, n);
+    whole.set_threads(1);
+    ahead.set_threads(1);
+    ahead.set_rows_ahead(true);
+    std::unique_ptr<FastHistory> restored[2];
+    Eigen::VectorXd s_whole(d), s(d);
+    auto push_ahead = [&](FastHistory& h, const Eigen::VectorXd& x) {
+      h.begin_row_push(x.data());
+      for (int share = 2; share >= 0; --share) h.rows_ahead(share, 3);
+      h.push_rows(150, d);
+      h.push_rows(0, 150);
+      h.end_row_push();
+    };
+    for (std::size_t k = 0; k < n; ++k) {
+      const Eigen::VectorXd x = xs.col(static_cast<Eigen::Index>(k));
+      whole.push(x);
+      whole.sum(s_whole);
+      if (k == 60) ahead.set_rows_ahead(false);
+      if (k == 62) ahead.set_rows_ahead(true);
+      if (k >= 60 && k < 62) {
+        ahead.push(x);
+      } else {
+        push_ahead(ahead, x);
+      }
+      ahead.sum(s);
+      ASSERT_TRUE((s.array() == s_whole.array()).all()) << "k = " << k;
+      for (int r = 0; r < 2 && restored[0]; ++r) {
+        if (r == 0) {
+          push_ahead(*restored[r], x);
+        } else {
+          restored[r]->push(x);
+        }
+        restored[r]->sum(s);
+        ASSERT_TRUE((s.array() == s_whole.array()).all()) << "restored " << r << ", k = " << k;
+      }
+      if (k == fit->window + 41) {  // groups ready for 0, 1, 2 and 3 more pushes
+        StateWriter writer;
+        ahead.visit_state(writer);
+        for (int r = 0; r < 2; ++r) {
+          restored[r] = std::make_unique<FastHistory>(fit, d, n);
+          restored[r]->set_threads(1);
+          if (r == 0) restored[r]->set_rows_ahead(true);
+          StateReader reader(writer.bytes(), "test state");
+          restored[r]->visit_state(reader);
+          reader.finish();
+        }
+      }
+    }
+    EXPECT_EQ(ahead.size(), n);
+  }
+  FastHistory team(1.5, 5000, 200);
+  team.set_threads(2);  // a run-ahead team pushes whole
+  EXPECT_THROW(team.set_rows_ahead(true), std::logic_error);
+  DirectHistory direct(1.5, d, 10);
+  EXPECT_THROW(direct.set_rows_ahead(true), std::logic_error);
 }
 
 TEST(FastHistory, ShortCapacityIsExact) {

@@ -180,8 +180,9 @@ TEST(StepByRows, FailuresEndAsTheWholeStepsRunsDo) {
 }
 
 // Checkpoints after each push of the four-push cycle (and at the first step), written on a team
-// of two, resumed on one thread and on two: the rest of the run bit for bit, linear and β-FPUT
-// (whose Newton keeps its Jacobian from step to step: the checkpoint carries it).
+// of two, resumed on one thread and on two and as whole steps: the rest of the run bit for bit,
+// linear and β-FPUT (whose Newton keeps its Jacobian from step to step: the checkpoint carries it;
+// its team runs the history ahead by row groups, brought even for the checkpoint).
 TEST(StepByRows, CheckpointsResumeBitForBitOnOneThreadOrTwo) {
   for (const double quartic : {0.0, 3.0}) {
     const InitialValueProblem p =
@@ -195,10 +196,11 @@ TEST(StepByRows, CheckpointsResumeBitForBitOnOneThreadOrTwo) {
       for (std::size_t i = 0; i < k; ++i) ASSERT_EQ(writer_run.step(), Status::kRunning);
       StateWriter writer;
       writer_run.visit_state(writer);
-      for (const int threads : {1, 2}) {
+      for (const int threads : {1, 2, -1}) {  // -1: whole steps on one thread
         SCOPED_TRACE("checkpoint after step " + std::to_string(k) + ", resumed on " +
                      std::to_string(threads));
-        Integrator resumed(p, method, options_for(threads, 64));
+        Integrator resumed(p, method,
+                           threads < 0 ? options_for(1, kNever) : options_for(threads, 64));
         StateReader reader(writer.bytes(), "test state");
         resumed.visit_state(reader);
         reader.finish();
@@ -207,7 +209,10 @@ TEST(StepByRows, CheckpointsResumeBitForBitOnOneThreadOrTwo) {
         EXPECT_EQ(s.status, Status::kSuccess) << s.message;
         EXPECT_TRUE(same_bits(s.x, reference.x));
         EXPECT_TRUE(same_bits(s.v, reference.v));
-        EXPECT_TRUE(same_bits(s.balance, reference.balance));
+        // (The whole steps' sums differ in their last bits.)
+        if (threads > 0) {
+          EXPECT_TRUE(same_bits(s.balance, reference.balance));
+        }
         EXPECT_EQ(s.jacobian_factorizations, reference.jacobian_factorizations);
       }
     }

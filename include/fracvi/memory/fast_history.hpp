@@ -39,6 +39,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <array>
 #include <cstddef>
 #include <memory>
 #include <string_view>
@@ -78,6 +79,16 @@ class FastHistory final : public History, private internal::RunAheadJob {
   void begin_row_push(const double* x_tilde) override;
   void push_rows(Eigen::Index lo, Eigen::Index hi) override;
   void end_row_push() override;
+  /// Pushes run ahead by row groups (History::set_rows_ahead): the rows fall into kAheadGroups
+  /// groups (one when n0 is not a multiple of 4), and each push runs, for the group whose turn it
+  /// is, the recursions and older windows of that push and the kAheadGroups − 1 after it in one
+  /// pass (the four-push pass of one thread, a quarter of the rows at a time) — every row's tails
+  /// are then ready a push or more ahead, and the push itself only adds x̃. Each row's operations
+  /// are those of push(), so the numbers are the same bit for bit. Throws std::logic_error
+  /// unless pushes_rows().
+  static constexpr int kAheadGroups = 4;
+  void set_rows_ahead(bool on) override;
+  void rows_ahead(int share, int shares) override;
   void sum(Eigen::Ref<Eigen::VectorXd> out) const override;
   /// push() forms the sum here (never the second thread).
   [[nodiscard]] const double* kept_sum() const override { return sum_.data(); }
@@ -147,14 +158,34 @@ class FastHistory final : public History, private internal::RunAheadJob {
     const double* entering = nullptr;
     Eigen::Index slot = 0, first = 0, own = 0;
     bool run_recursions = false;
+    bool by_groups = false;  // run ahead by row groups: push_rows() only adds x̃
     int steps = 1;
     internal::RunAhead::Turn turn{};
   } pending_;
+  // Pushes run ahead by row groups (set_rows_ahead): the groups' rows, and for each group the
+  // pushes from size_ on whose tails are complete ("ready"); the passes that begin_row_push()
+  // chose for rows_ahead() (a group's rows, its first push after size_, the pushes).
+  bool by_groups_ = false;
+  int groups_ = 1;
+  std::array<Eigen::Index, kAheadGroups + 1> group_bounds_{};
+  std::array<int, kAheadGroups> group_ready_{};
+  struct GroupPass {
+    Eigen::Index lo = 0, hi = 0;
+    int from = 0, steps = 0;
+  };
+  std::array<GroupPass, kAheadGroups> group_passes_{};
+  int group_pass_count_ = 0;
   // The thread count and the run-ahead thread (last: its thread is joined before the arrays it
   // writes are destroyed).
   internal::RunAhead run_ahead_;
 
   void configure_threads(int threads);
+  // Rows [lo, hi) of a group's pass: the recursions and older windows of pushes size_ + from …
+  // size_ + from + steps − 1.
+  void group_pass(const GroupPass& pass, Eigen::Index lo, Eigen::Index hi);
+  // Every group brought to the most ready pushes of any (running the others' passes), stated as
+  // the pushes without groups keep it (later_ and the ahead flag): a checkpoint's form.
+  void even_groups();
   // Rows [b, b + n) of a push: `terms` recursions (0: none) with x̃ from ring column `slot`, the
   // window from column `first` (wrapping at n0), the new value `entering` (null: the recursions
   // alone), written into ring column `slot`.

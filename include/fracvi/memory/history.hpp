@@ -105,6 +105,15 @@ class History {
   virtual void begin_row_push(const double* x_tilde);
   virtual void push_rows(Eigen::Index lo, Eigen::Index hi);
   virtual void end_row_push();
+  /// With set_rows_ahead(true) (the step by rows whose solve runs on one thread: the others wait
+  /// for it): between begin_row_push() and the push_rows() calls, rows_ahead(share, shares) for
+  /// share = 0 … shares − 1 — from as many threads at once, while x̃ is still being computed —
+  /// runs the push's work that does not need x̃ (FastHistory: its recursions and older window,
+  /// and those of the next pushes on a group of the rows), and push_rows() then only adds x̃.
+  /// The same numbers as push(x̃). Only where pushes_rows(); the defaults throw
+  /// std::logic_error.
+  virtual void set_rows_ahead(bool on);
+  virtual void rows_ahead(int share, int shares);
 
   /// Number of values pushed since construction or clear().
   [[nodiscard]] virtual std::size_t size() const = 0;
