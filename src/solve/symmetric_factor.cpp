@@ -493,7 +493,20 @@ template <class V>
     for (std::size_t i = n - 1; i-- > rest;) x[i] -= e[i] * x[i + 1];
     carry[G - 1][W - 1] = x[rest];
   }
-  for (std::size_t row = c; row-- > 0;) {
+  // Beyond the farthest reach every lane's mask selects y: those rows skip the spikes (the solve
+  // moves each row's data through the caches; at d = 10^4 it is bound by that, not by its
+  // recurrences' latency: bench/RESULTS.md).
+  const auto spiked = static_cast<std::size_t>(*std::max_element(reach, reach + kChunks));
+  for (std::size_t row = c; row-- > spiked;) {
+#pragma GCC unroll 16
+    for (std::size_t g = 0; g < G; ++g) {
+      const std::size_t k = row * kChunks + W * g;
+      const V scaled = at<V>(lanes + k).v * at<V>(s.lane_inverse + k).v;
+      carry[g] = scaled - at<V>(s.lane_off + k).v * carry[g];
+      at<V>(lanes + k).v = carry[g];
+    }
+  }
+  for (std::size_t row = std::min(spiked, c); row-- > 0;) {
     V tv;
 #pragma GCC unroll 4
     for (std::size_t j = 0; j < W; ++j) tv[j] = static_cast<double>(row);
@@ -519,7 +532,21 @@ template <class V>
     if (s.backward_reach[p] == c) z += s.backward[chunk_begin(p, c)] * after[p];
     after[p - 1] = z;
   }
+  // Before the nearest backward spike's start every lane's mask selects z: those rows are copied.
+  const std::size_t unspiked =
+      static_cast<std::size_t>(*std::min_element(from, from + kChunks)) / W * W;
   std::size_t row = 0;
+  for (; row + W <= std::min(unspiked, c); row += W) {
+#pragma GCC unroll 16
+    for (std::size_t g = 0; g < G; ++g) {
+      V r[W];
+#pragma GCC unroll 4
+      for (std::size_t j = 0; j < W; ++j) r[j] = at<V>(lanes + (row + j) * kChunks + W * g).v;
+      transpose(r);
+#pragma GCC unroll 4
+      for (std::size_t j = 0; j < W; ++j) at<V>(x + chunk_begin(W * g + j, c) + row).v = r[j];
+    }
+  }
   for (; row + W <= c; row += W) {
     V tv;
 #pragma GCC unroll 4
