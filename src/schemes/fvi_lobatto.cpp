@@ -38,6 +38,7 @@
 #include <boost/math/quadrature/tanh_sinh.hpp>
 #include <boost/math/special_functions/binomial.hpp>
 #include <boost/math/special_functions/gamma.hpp>
+#include <cassert>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -583,37 +584,86 @@ struct IntervalRows {
   std::array<std::array<double, 4>, 4> D, BD, W;  // D, BD, and the interval's own weight
 };
 
+// The loop with everything it reads in locals (a store through a double* could otherwise alias
+// the struct, and GCC would reload its fields every row instead of vectorising), and the number of
+// force columns, the damping and P's split as template parameters.
+template <int S, int kLast, bool kDamped, bool kSplit>
+[[gnu::always_inline]] inline void interval_rows(const IntervalRows& r) {
+  const Eigen::Index n = r.rows, ld = r.ld;
+  const double* delta = r.delta;
+  const double* stages = r.stages;
+  const double* forces = r.forces;
+  const double* memory = r.memory;
+  const double* loads = r.loads;
+  double* velocities = r.velocities;
+  double* tilde_out = r.tilde;
+  double* damping_forces = r.damping_forces;
+  double* force = r.force;
+  const double* mass = r.mass;
+  const double* damping = r.damping;
+  const double* x0 = r.x0;
+  const double* v0 = r.v0;
+  const double h = r.h, h_power = r.h_power;
+  double tau[S], hb[S], D[S][S], BD[S][S], W[S][S];
+  for (int a = 0; a < S; ++a) {
+    tau[a] = r.tau[a];
+    hb[a] = r.hb[a];
+    for (int j = 0; j < S; ++j) {
+      D[a][j] = r.D[a][j];
+      BD[a][j] = r.BD[a][j];
+      W[a][j] = r.W[a][j];
+    }
+  }
+  FRACVI_INDEPENDENT_ITERATIONS
+  for (Eigen::Index i = 0; i < n; ++i) {
+    double kinetic[S], tilde[S];
+    for (int a = 0; a < S; ++a) {
+      double v = 0.0;
+      for (int j = 0; j < S; ++j) v += delta[j * ld + i] * D[a][j];
+      v /= h;
+      velocities[a * ld + i] = v;
+      kinetic[a] = mass[i] * v;
+      if constexpr (kDamped) {
+        const double x = stages[a * ld + i];
+        tilde[a] = kSplit ? (x - x0[i]) - tau[a] * v0[i] : x;
+        tilde_out[a * ld + i] = tilde[a];
+      }
+    }
+    for (int k = 0; k < kLast; ++k) {
+      double f = 0.0;
+      for (int a = 0; a < S; ++a) f += kinetic[a] * BD[a][k];
+      f -= hb[k] * forces[k * ld + i];
+      if constexpr (kDamped) {
+        double g = 0.0;
+        for (int l = 0; l < S; ++l) g += tilde[l] * W[k][l];
+        g += memory[k * ld + i];
+        const double damping_force = (damping[i] * g) * h_power;
+        damping_forces[k * ld + i] = damping_force;
+        f -= hb[k] * damping_force;
+      }
+      force[k * ld + i] = f - loads[k * ld + i];
+    }
+  }
+}
+
 template <int S>
 struct IntervalKernel {
+  template <int kLast>
   FRACVI_HOT_KERNEL static void run(const IntervalRows& r) {
-    const Eigen::Index n = r.rows, ld = r.ld;
-    FRACVI_INDEPENDENT_ITERATIONS
-    for (Eigen::Index i = 0; i < n; ++i) {
-      double kinetic[S], tilde[S];
-      for (int a = 0; a < S; ++a) {
-        double v = 0.0;
-        for (int j = 0; j < S; ++j) v += r.delta[j * ld + i] * r.D[a][j];
-        v /= r.h;
-        r.velocities[a * ld + i] = v;
-        kinetic[a] = r.mass[i] * v;
-        const double x = r.stages[a * ld + i];
-        tilde[a] = r.x0 != nullptr ? (x - r.x0[i]) - r.tau[a] * r.v0[i] : x;
-        if (r.damping != nullptr) r.tilde[a * ld + i] = tilde[a];
-      }
-      for (int k = 0; k < r.last; ++k) {
-        double f = 0.0;
-        for (int a = 0; a < S; ++a) f += kinetic[a] * r.BD[a][k];
-        f -= r.hb[k] * r.forces[k * ld + i];
-        if (r.damping != nullptr) {
-          double g = 0.0;
-          for (int l = 0; l < S; ++l) g += tilde[l] * r.W[k][l];
-          g += r.memory[k * ld + i];
-          const double damping_force = (r.damping[i] * g) * r.h_power;
-          r.damping_forces[k * ld + i] = damping_force;
-          f -= r.hb[k] * damping_force;
-        }
-        r.force[k * ld + i] = f - r.loads[k * ld + i];
-      }
+    if (r.damping == nullptr) {
+      interval_rows<S, kLast, false, false>(r);
+    } else if (r.x0 == nullptr) {
+      interval_rows<S, kLast, true, false>(r);
+    } else {
+      interval_rows<S, kLast, true, true>(r);
+    }
+  }
+  static void run(const IntervalRows& r) {
+    if (r.last == S) {
+      run<S>(r);
+    } else {
+      assert(r.last == S - 1);
+      run<S - 1>(r);
     }
   }
 };
