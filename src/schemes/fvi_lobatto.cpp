@@ -586,8 +586,11 @@ struct IntervalRows {
 
 // The loop with everything it reads in locals (a store through a double* could otherwise alias
 // the struct, and GCC would reload its fields every row instead of vectorising), and the number of
-// force columns, the damping and P's split as template parameters.
-template <int S, int kLast, bool kDamped, bool kSplit>
+// force columns, the damping and P's split as template parameters. The pass is bound by moving
+// its d × s blocks (at d = 10^4 they come from L3): Newton's residual (kLast = s − 1) stores only
+// the forces — the velocities, X̃ and damping forces are read after the accepted stages' call
+// (kLast = s) alone — and without loads (a Caputo order above 1 has none) they are not read.
+template <int S, int kLast, bool kDamped, bool kSplit, bool kLoads>
 [[gnu::always_inline]] inline void interval_rows(const IntervalRows& r) {
   const Eigen::Index n = r.rows, ld = r.ld;
   const double* delta = r.delta;
@@ -621,12 +624,12 @@ template <int S, int kLast, bool kDamped, bool kSplit>
       double v = 0.0;
       for (int j = 0; j < S; ++j) v += delta[j * ld + i] * D[a][j];
       v /= h;
-      velocities[a * ld + i] = v;
+      if constexpr (kLast == S) velocities[a * ld + i] = v;
       kinetic[a] = mass[i] * v;
       if constexpr (kDamped) {
         const double x = stages[a * ld + i];
         tilde[a] = kSplit ? (x - x0[i]) - tau[a] * v0[i] : x;
-        tilde_out[a * ld + i] = tilde[a];
+        if constexpr (kLast == S) tilde_out[a * ld + i] = tilde[a];
       }
     }
     for (int k = 0; k < kLast; ++k) {
@@ -638,24 +641,32 @@ template <int S, int kLast, bool kDamped, bool kSplit>
         for (int l = 0; l < S; ++l) g += tilde[l] * W[k][l];
         g += memory[k * ld + i];
         const double damping_force = (damping[i] * g) * h_power;
-        damping_forces[k * ld + i] = damping_force;
+        if constexpr (kLast == S) damping_forces[k * ld + i] = damping_force;
         f -= hb[k] * damping_force;
       }
-      force[k * ld + i] = f - loads[k * ld + i];
+      force[k * ld + i] = kLoads ? f - loads[k * ld + i] : f;
     }
   }
 }
 
 template <int S>
 struct IntervalKernel {
-  template <int kLast>
+  template <int kLast, bool kLoads>
   FRACVI_HOT_KERNEL static void run(const IntervalRows& r) {
     if (r.damping == nullptr) {
-      interval_rows<S, kLast, false, false>(r);
+      interval_rows<S, kLast, false, false, kLoads>(r);
     } else if (r.x0 == nullptr) {
-      interval_rows<S, kLast, true, false>(r);
+      interval_rows<S, kLast, true, false, kLoads>(r);
     } else {
-      interval_rows<S, kLast, true, true>(r);
+      interval_rows<S, kLast, true, true, kLoads>(r);
+    }
+  }
+  template <int kLast>
+  static void run(const IntervalRows& r) {
+    if (r.loads != nullptr) {
+      run<kLast, true>(r);
+    } else {
+      run<kLast, false>(r);
     }
   }
   static void run(const IntervalRows& r) {
@@ -717,6 +728,7 @@ class LobattoStepper final : public Stepper {
       forcing_value_.setZero(d_, s_);
       forcing_slope_.setZero(d_, s_);
     }
+    has_loads_ = velocity_load_ || position_load_ || forcing_load_;
     for (Eigen::VectorXd* v : {&x_, &v_, &p_, &r_v0_, &r_x0_}) v->setZero(d_);
     for (Eigen::VectorXd* v : {&load_v_, &load_x_, &work_v_, &work_x_}) v->setZero(s_);
     residual_.setZero((s_ - 1) * d_);
@@ -841,6 +853,7 @@ class LobattoStepper final : public Stepper {
   double h_power_;                       // h^{−β}
   bool split_ = false;
   bool fused_rows_ = false;  // interval_force() by IntervalKernel
+  bool has_loads_ = false;   // P's or f's moments: Blocks::loads is not zero
   std::unique_ptr<PowerMoments> velocity_load_, position_load_;
   std::unique_ptr<ForcingMoments> forcing_load_;
   Eigen::MatrixXd forcing_value_, forcing_slope_;  // d × s moments of f on the current interval
@@ -891,7 +904,7 @@ void LobattoStepper::interval_force(Blocks& b, const Eigen::MatrixXd& current, i
     r.stages = b.stages.data();
     r.forces = b.forces.data();
     r.memory = b.memory.data();
-    r.loads = b.loads.data();
+    r.loads = has_loads_ ? b.loads.data() : nullptr;
     r.velocities = b.velocities.data();
     r.tilde = b.tilde.data();
     r.damping_forces = b.damping_forces.data();
@@ -958,7 +971,7 @@ Status LobattoStepper::advance() {
       cur_.memory.setZero();
     }
   }
-  cur_.loads.setZero();
+  if (has_loads_) cur_.loads.setZero();  // (else it stays zero)
   if (velocity_load_) {
     (*velocity_load_)(n, load_v_, work_v_);
     for (int a = 0; a < s_; ++a) cur_.loads.col(a) += (h_ * load_v_(a)) * r_v0_;

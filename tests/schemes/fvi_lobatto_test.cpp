@@ -639,10 +639,11 @@ TEST(LobattoStageSolver, SparseAndDenseAgreeOnChain) {
 // pass over the rows (IntervalKernel, fvi_lobatto.cpp); with the same M and R stored dense, by the
 // general path's Eigen expressions. The two must give the same trajectory to round-off (≤ 1e-12
 // relative; the one pass contracts products and sums to multiply–adds, and the dense matrices take
-// another stage solver): s = 2, 3, 4; linear and β-FPUT chains of 41 uneven masses with a load;
-// Caputo 2α = 1.5 (P's v_0 load, X̃ = X − x_0 − τ v_0), Riemann–Liouville 2α = 0.6 (and x_0's
-// load) and no damping; 60 steps, the memory's window filled. Control: x_0 scaled by 1 + 1e-10 is
-// seen by the same measure.
+// another stage solver): s = 2, 3, 4; linear and β-FPUT chains of 41 uneven masses with a
+// pointwise load f; Caputo 2α = 1.5 (X̃ = X − x_0 − τ v_0, no moments of P: the pass without
+// loads), Riemann–Liouville 2α = 0.6 (the moments of P's x_0 and v_0: with loads) and no damping;
+// 60 steps, the memory's window filled. Control: x_0 scaled by 1 + 1e-10 is seen by the same
+// measure.
 TEST(LobattoIntervalRows, OnePassAgreesWithTheGeneralPath) {
   Eigen::setNbThreads(1);
   constexpr Eigen::Index kD = 41;
