@@ -574,6 +574,7 @@ struct Blocks {
 struct IntervalRows {
   Eigen::Index rows, ld;  // rows of this call; the column stride of the d × s blocks
   int last;               // force columns [0, last)
+  bool forces_only;       // store only the forces (a linear step's residual)
   const double *delta, *stages, *forces, *memory, *loads;  // d × s blocks at the first row
   double *velocities, *tilde, *damping_forces, *force;
   const double* mass;     // M's diagonal
@@ -587,10 +588,11 @@ struct IntervalRows {
 // The loop with everything it reads in locals (a store through a double* could otherwise alias
 // the struct, and GCC would reload its fields every row instead of vectorising), and the number of
 // force columns, the damping and P's split as template parameters. The pass is bound by moving
-// its d × s blocks (at d = 10^4 they come from L3): Newton's residual (kLast = s − 1) stores only
-// the forces — the velocities, X̃ and damping forces are read after the accepted stages' call
-// (kLast = s) alone — and without loads (a Caputo order above 1 has none) they are not read.
-template <int S, int kLast, bool kDamped, bool kSplit, bool kLoads>
+// its d × s blocks (at d = 10^4 they come from L3): a linear step's residual (kStore false) stores
+// only the forces — the velocities, X̃ and damping forces are read after the accepted stages' call
+// (a nonlinear step's Newton reads X̃ for its stopping rule and keeps the velocities with its
+// matrix) — and without loads (a Caputo order above 1 has none) they are not read.
+template <int S, int kLast, bool kDamped, bool kSplit, bool kLoads, bool kStore>
 [[gnu::always_inline]] inline void interval_rows(const IntervalRows& r) {
   const Eigen::Index n = r.rows, ld = r.ld;
   const double* delta = r.delta;
@@ -624,12 +626,12 @@ template <int S, int kLast, bool kDamped, bool kSplit, bool kLoads>
       double v = 0.0;
       for (int j = 0; j < S; ++j) v += delta[j * ld + i] * D[a][j];
       v /= h;
-      if constexpr (kLast == S) velocities[a * ld + i] = v;
+      if constexpr (kStore) velocities[a * ld + i] = v;
       kinetic[a] = mass[i] * v;
       if constexpr (kDamped) {
         const double x = stages[a * ld + i];
         tilde[a] = kSplit ? (x - x0[i]) - tau[a] * v0[i] : x;
-        if constexpr (kLast == S) tilde_out[a * ld + i] = tilde[a];
+        if constexpr (kStore) tilde_out[a * ld + i] = tilde[a];
       }
     }
     for (int k = 0; k < kLast; ++k) {
@@ -641,7 +643,7 @@ template <int S, int kLast, bool kDamped, bool kSplit, bool kLoads>
         for (int l = 0; l < S; ++l) g += tilde[l] * W[k][l];
         g += memory[k * ld + i];
         const double damping_force = (damping[i] * g) * h_power;
-        if constexpr (kLast == S) damping_forces[k * ld + i] = damping_force;
+        if constexpr (kStore) damping_forces[k * ld + i] = damping_force;
         f -= hb[k] * damping_force;
       }
       force[k * ld + i] = kLoads ? f - loads[k * ld + i] : f;
@@ -651,33 +653,101 @@ template <int S, int kLast, bool kDamped, bool kSplit, bool kLoads>
 
 template <int S>
 struct IntervalKernel {
-  template <int kLast, bool kLoads>
+  template <int kLast, bool kLoads, bool kStore>
   FRACVI_HOT_KERNEL static void run(const IntervalRows& r) {
     if (r.damping == nullptr) {
-      interval_rows<S, kLast, false, false, kLoads>(r);
+      interval_rows<S, kLast, false, false, kLoads, kStore>(r);
     } else if (r.x0 == nullptr) {
-      interval_rows<S, kLast, true, false, kLoads>(r);
+      interval_rows<S, kLast, true, false, kLoads, kStore>(r);
     } else {
-      interval_rows<S, kLast, true, true, kLoads>(r);
+      interval_rows<S, kLast, true, true, kLoads, kStore>(r);
     }
   }
-  template <int kLast>
+  template <int kLast, bool kStore>
   static void run(const IntervalRows& r) {
     if (r.loads != nullptr) {
-      run<kLast, true>(r);
+      run<kLast, true, kStore>(r);
     } else {
-      run<kLast, false>(r);
+      run<kLast, false, kStore>(r);
     }
   }
   static void run(const IntervalRows& r) {
     if (r.last == S) {
-      run<S>(r);
+      run<S, true>(r);
+    } else if (r.forces_only) {
+      assert(r.last == S - 1);
+      run<S - 1, false>(r);
     } else {
       assert(r.last == S - 1);
-      run<S - 1>(r);
+      run<S - 1, true>(r);
     }
   }
 };
+
+// advance()'s passes over the d × s blocks, one loop over the rows each, with the operations of
+// the Eigen expressions they replaced (a pass per operation: a copy, an add, a negation, a max, a
+// finiteness check), in the same order, so the same numbers. Finiteness as in vector_passes.hpp:
+// Σ 0·v is 0 exactly when every v is finite.
+// The guess Δ_a = (c_a h) v_n and X_a = Δ_a + x_n.
+void guess_pass(const double* ch, int s, const double* v, const double* x, double* delta,
+                double* stages, Eigen::Index d) {
+  for (int a = 0; a < s; ++a) {
+    double* da = delta + a * d;
+    double* xa = stages + a * d;
+    const double c = ch[a];
+    for (Eigen::Index i = 0; i < d; ++i) {
+      da[i] = c * v[i];
+      xa[i] = da[i] + x[i];
+    }
+  }
+}
+
+// Newton's right-hand side −r: −F_{n,1} − p_n, −F_{n,i} (i = 2 … s − 1); whether it is finite.
+bool residual_pass(const double* force, const double* p, int s, double* residual, Eigen::Index d) {
+  double zero = 0.0;
+  for (int m = 0; m + 1 < s; ++m) {
+    const double* f = force + m * d;
+    double* r = residual + m * d;
+    if (m == 0) {
+#pragma omp simd reduction(+ : zero)
+      for (Eigen::Index i = 0; i < d; ++i) {
+        r[i] = -f[i] - p[i];
+        zero += 0.0 * r[i];
+      }
+    } else {
+#pragma omp simd reduction(+ : zero)
+      for (Eigen::Index i = 0; i < d; ++i) {
+        r[i] = -f[i];
+        zero += 0.0 * r[i];
+      }
+    }
+  }
+  return zero == 0.0;
+}
+
+// The correction δ (in place of the residual) onto Δ_m and X_m = Δ_m + x_n, m = 2 … s (the first
+// stage is x_n, unchanged); max|δ| and whether the new stages are finite.
+struct StageCorrection {
+  double size = 0.0;
+  bool finite = true;
+};
+StageCorrection correction_pass(const double* delta_in, const double* x, int s, double* delta,
+                                double* stages, Eigen::Index d) {
+  double size = 0.0, zero = 0.0;
+  for (int m = 1; m < s; ++m) {
+    const double* c = delta_in + (m - 1) * d;
+    double* dm = delta + m * d;
+    double* xm = stages + m * d;
+#pragma omp simd reduction(max : size) reduction(+ : zero)
+    for (Eigen::Index i = 0; i < d; ++i) {
+      dm[i] += c[i];
+      xm[i] = dm[i] + x[i];
+      size = std::max(size, std::abs(c[i]));
+      zero += 0.0 * xm[i];
+    }
+  }
+  return {size, zero == 0.0};
+}
 
 class LobattoStepper final : public Stepper {
  public:
@@ -900,6 +970,7 @@ void LobattoStepper::interval_force(Blocks& b, const Eigen::MatrixXd& current, i
     r.rows = d_;
     r.ld = d_;
     r.last = last;
+    r.forces_only = last < s_ && linear_;
     r.delta = b.delta.data();
     r.stages = b.stages.data();
     r.forces = b.forces.data();
@@ -986,9 +1057,9 @@ Status LobattoStepper::advance() {
     cur_.loads.noalias() -= h_ * forcing_value_;
   }
   // Guess: the stages on the line x_n + (t − t_n) v_n (v_n = M⁻¹p_n, kept by the previous step).
-  for (int a = 0; a < s_; ++a) cur_.delta.col(a) = (nodes_.c(a) * h_) * v_;
-  cur_.stages = cur_.delta;
-  cur_.stages.colwise() += x_;
+  std::array<double, 4> ch{};
+  for (int a = 0; a < s_; ++a) ch[a] = nodes_.c(a) * h_;
+  guess_pass(ch.data(), s_, v_.data(), x_.data(), cur_.delta.data(), cur_.stages.data(), d_);
   stage_forces(cur_, 0, s_ - 1);
   const NewtonOptions& newton = options_.newton;
   int iterations = 0;
@@ -1005,9 +1076,8 @@ Status LobattoStepper::advance() {
   for (;;) {
     interval_force(cur_, w0_, s_ - 1);
     // Residual rows: p_n + F_{n,1}, F_{n,i} (i = 2 … s − 1); Newton: J δ = −r.
-    for (int i = 0; i + 1 < s_; ++i) residual_.segment(i * d_, d_) = -cur_.force.col(i);
-    residual_.head(d_) -= p_;
-    if (!residual_.allFinite()) return fail(Status::kNonFinite, "non-finite stage residual");
+    if (!residual_pass(cur_.force.data(), p_.data(), s_, residual_.data(), d_))
+      return fail(Status::kNonFinite, "non-finite stage residual");
     if (!linear_ && refactor) {
       factored_stages_ = cur_.stages;
       factored_times_ = cur_.times;
@@ -1021,14 +1091,10 @@ Status LobattoStepper::advance() {
     }
     stage_matrix_.solve_in_place(residual_, solve_scratch_);
     ++iterations;
-    double correction = 0.0;
-    for (int m = 1; m < s_; ++m) {
-      cur_.delta.col(m) += residual_.segment((m - 1) * d_, d_);
-      correction = std::max(correction, residual_.segment((m - 1) * d_, d_).cwiseAbs().maxCoeff());
-    }
-    cur_.stages = cur_.delta;
-    cur_.stages.colwise() += x_;
-    if (!cur_.stages.allFinite()) return fail(Status::kNonFinite, "non-finite stage values");
+    const StageCorrection corrected =
+        correction_pass(residual_.data(), x_.data(), s_, cur_.delta.data(), cur_.stages.data(), d_);
+    const double correction = corrected.size;
+    if (!corrected.finite) return fail(Status::kNonFinite, "non-finite stage values");
     if (linear_) break;  // the equations are linear in the stages: one correction is exact
     stage_forces(cur_, 1, s_ - 1);
     // The stopping rule of NewtonOptions, floored at the round-off of the stage equations: the
