@@ -532,6 +532,12 @@ template <class V>
     if (s.backward_reach[p] == c) z += s.backward[chunk_begin(p, c)] * after[p];
     after[p - 1] = z;
   }
+  // Rows row … row + W − 1 of the lanes W g … W g + W − 1, as W vectors of W rows (one a lane).
+  const auto lane_rows = [lanes](std::size_t row, std::size_t g, V(&r)[W]) {
+#pragma GCC unroll 4
+    for (std::size_t j = 0; j < W; ++j) r[j] = at<V>(lanes + (row + j) * kChunks + W * g).v;
+    transpose(r);
+  };
   // Before the nearest backward spike's start every lane's mask selects z: those rows are copied.
   const std::size_t unspiked =
       static_cast<std::size_t>(*std::min_element(from, from + kChunks)) / W * W;
@@ -540,9 +546,7 @@ template <class V>
 #pragma GCC unroll 16
     for (std::size_t g = 0; g < G; ++g) {
       V r[W];
-#pragma GCC unroll 4
-      for (std::size_t j = 0; j < W; ++j) r[j] = at<V>(lanes + (row + j) * kChunks + W * g).v;
-      transpose(r);
+      lane_rows(row, g, r);
 #pragma GCC unroll 4
       for (std::size_t j = 0; j < W; ++j) at<V>(x + chunk_begin(W * g + j, c) + row).v = r[j];
     }
@@ -554,9 +558,7 @@ template <class V>
 #pragma GCC unroll 16
     for (std::size_t g = 0; g < G; ++g) {
       V r[W];
-#pragma GCC unroll 4
-      for (std::size_t j = 0; j < W; ++j) r[j] = at<V>(lanes + (row + j) * kChunks + W * g).v;
-      transpose(r);
+      lane_rows(row, g, r);
 #pragma GCC unroll 4
       for (std::size_t j = 0; j < W; ++j) {
         const std::size_t p = W * g + j, i = chunk_begin(p, c) + row;

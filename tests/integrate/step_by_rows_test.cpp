@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "../support/test_potentials.hpp"
+#include "../support/test_problems.hpp"
 #include "fracvi/core/state_archive.hpp"
 #include "fracvi/integrate/integrator.hpp"
 #include "fracvi/model/chain_potential.hpp"
@@ -31,41 +32,7 @@
 namespace fracvi {
 namespace {
 
-// A fixed chain of d masses (uneven, or all 1), linear or with quartic springs (β-FPUT), 2α = 3/2
-// Caputo damping with x_0 and v_0 both non-zero (x̃ subtracts both), and a load f(t) on every mass.
-InitialValueProblem linear_chain(Eigen::Index d, bool unit_mass, std::size_t steps,
-                                 double onsite = 0.5, double t_end = 3.0,
-                                 Convention convention = Convention::kCaputo, double alpha = 0.75,
-                                 double quartic = 0.0) {
-  InitialValueProblem p;
-  Eigen::VectorXd masses(d);
-  for (Eigen::Index i = 0; i < d; ++i)
-    masses[i] = unit_mass ? 1.0 : 1.0 + 0.3 * std::sin(0.7 * static_cast<double>(i));
-  p.model.mass = ModelMatrix::diagonal(masses);
-  p.model.damping = ModelMatrix::identity(d, 0.4);
-  p.model.alpha = alpha;
-  p.model.convention = convention;
-  ChainOptions c;
-  c.dimension = d;
-  c.stiffness = 2.0;
-  c.onsite = onsite;
-  c.cubic = 0.0;
-  c.quartic = quartic;
-  p.model.potential = make_chain_potential(c);
-  p.model.forcing = [d](double t, Eigen::Ref<Eigen::VectorXd> f) {
-    for (Eigen::Index i = 0; i < d; ++i) f[i] = 0.1 * std::cos(t + 0.01 * static_cast<double>(i));
-  };
-  p.x0.resize(d);
-  p.v0.resize(d);
-  for (Eigen::Index i = 0; i < d; ++i) {
-    const double xi = M_PI * static_cast<double>(i + 1) / static_cast<double>(d + 1);
-    p.x0[i] = 0.4 * std::sin(3.0 * xi);
-    p.v0[i] = 0.3 * std::cos(5.0 * xi);
-  }
-  p.t_end = t_end;
-  p.steps = steps;
-  return p;
-}
+using test::forced_chain;
 
 IntegratorOptions options_for(int threads, Eigen::Index row_split_from) {
   IntegratorOptions o;
@@ -108,7 +75,7 @@ TEST(StepByRows, PositionsAreTheWholeStepsBitForBitWhateverTheTeam) {
     SCOPED_TRACE(std::string(scheme) + (c.unit_mass ? ", M = I" : ", diagonal M") +
                  (c.quartic != 0.0 ? ", β-FPUT" : ""));
     const bool bdf2 = std::string(scheme) == "fvi-bdf2";
-    const InitialValueProblem p = linear_chain(
+    const InitialValueProblem p = forced_chain(
         501, c.unit_mass, 300, 0.5, 3.0, bdf2 ? Convention::kRiemannLiouville : Convention::kCaputo,
         bdf2 ? 0.3 : 0.75, c.quartic);
     const Solution whole = run(p, 1, kNever, scheme);
@@ -153,16 +120,16 @@ TEST(StepByRows, PositionsAreTheWholeStepsBitForBitWhateverTheTeam) {
 // not finite at step 10), and a nonlinear potential that throws at t = 1 (a callback error). Each
 // ends as the whole steps' run does, on one thread and on two.
 TEST(StepByRows, FailuresEndAsTheWholeStepsRunsDo) {
-  InitialValueProblem nan_load = linear_chain(300, false, 30);
+  InitialValueProblem nan_load = forced_chain(300, false, 30);
   nan_load.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
     f.setConstant(t > 1.0 ? std::numeric_limits<double>::quiet_NaN() : 0.1);
   };
   InitialValueProblem throwing =
-      linear_chain(300, false, 30, 0.5, 3.0, Convention::kCaputo, 0.75, 1.0);
+      forced_chain(300, false, 30, 0.5, 3.0, Convention::kCaputo, 0.75, 1.0);
   throwing.model.potential =
       std::make_shared<const test::ThrowingAfter>(throwing.model.potential, 1.0);
   for (const InitialValueProblem& p :
-       {linear_chain(300, false, 4000, -40.0, 400.0), nan_load, throwing}) {
+       {forced_chain(300, false, 4000, -40.0, 400.0), nan_load, throwing}) {
     const Solution whole = run(p, 1, kNever);
     ASSERT_NE(whole.status, Status::kSuccess);
     for (const int threads : {1, 2}) {
@@ -186,7 +153,7 @@ TEST(StepByRows, FailuresEndAsTheWholeStepsRunsDo) {
 TEST(StepByRows, CheckpointsResumeBitForBitOnOneThreadOrTwo) {
   for (const double quartic : {0.0, 3.0}) {
     const InitialValueProblem p =
-        linear_chain(300, false, 120, 0.5, 3.0, Convention::kCaputo, 0.75, quartic);
+        forced_chain(300, false, 120, 0.5, 3.0, Convention::kCaputo, 0.75, quartic);
     const Method method = *parse_method("fvi-gl");
     const Solution reference = integrate(p, method, options_for(2, 64));
     ASSERT_EQ(reference.status, Status::kSuccess) << reference.message;
@@ -223,8 +190,8 @@ TEST(StepByRows, CheckpointsResumeBitForBitOnOneThreadOrTwo) {
 // damping), the direct history, d below row_split_from; a nonlinear chain splits (Newton on one
 // thread).
 TEST(StepByRows, OnlyCqMidpointStepsWithTheFastHistorySplit) {
-  const InitialValueProblem p = linear_chain(200, false, 40);
-  EXPECT_TRUE(run(linear_chain(200, false, 40, 0.5, 3.0, Convention::kCaputo, 0.75, 1.0), 2, 64)
+  const InitialValueProblem p = forced_chain(200, false, 40);
+  EXPECT_TRUE(run(forced_chain(200, false, 40, 0.5, 3.0, Convention::kCaputo, 0.75, 1.0), 2, 64)
                   .history_threads.whole_steps);
   EXPECT_TRUE(run(p, 2, 64).history_threads.whole_steps);
   EXPECT_TRUE(run(p, 2, 64, "fvi-bdf2").history_threads.whole_steps);

@@ -654,36 +654,15 @@ TEST(LobattoIntervalRows, OnePassAgreesWithTheGeneralPath) {
     double quartic;
   };
   auto problem = [&](const Case& c, bool dense) {
-    InitialValueProblem p;
+    InitialValueProblem p =
+        test::forced_chain(kD, false, 60, 0.5, 3.0, c.convention, 0.5 * c.beta, c.quartic);
     Eigen::VectorXd masses(kD);
-    for (Eigen::Index i = 0; i < kD; ++i)
-      masses[i] = 1.0 + 0.3 * std::sin(0.7 * static_cast<double>(i));
+    for (Eigen::Index i = 0; i < kD; ++i) masses[i] = p.model.mass.coeff(i, i);
     const Eigen::VectorXd damping = Eigen::VectorXd::Constant(kD, c.beta > 0.0 ? 0.4 : 0.0);
     p.model.mass =
         dense ? ModelMatrix(Eigen::MatrixXd(masses.asDiagonal())) : ModelMatrix::diagonal(masses);
     p.model.damping =
         dense ? ModelMatrix(Eigen::MatrixXd(damping.asDiagonal())) : ModelMatrix::diagonal(damping);
-    p.model.alpha = 0.5 * c.beta;
-    p.model.convention = c.convention;
-    ChainOptions chain;
-    chain.dimension = kD;
-    chain.stiffness = 2.0;
-    chain.onsite = 0.5;
-    chain.quartic = c.quartic;
-    p.model.potential = make_chain_potential(chain);
-    p.model.forcing = [](double t, Eigen::Ref<Eigen::VectorXd> f) {
-      for (Eigen::Index i = 0; i < f.size(); ++i)
-        f[i] = 0.1 * std::cos(t + 0.01 * static_cast<double>(i));
-    };
-    p.x0.resize(kD);
-    p.v0.resize(kD);
-    for (Eigen::Index i = 0; i < kD; ++i) {
-      const double xi = M_PI * static_cast<double>(i + 1) / static_cast<double>(kD + 1);
-      p.x0[i] = 0.4 * std::sin(3.0 * xi);
-      p.v0[i] = 0.3 * std::cos(5.0 * xi);
-    }
-    p.t_end = 3.0;
-    p.steps = 60;
     return p;
   };
   auto run = [](int s, const InitialValueProblem& p) {
