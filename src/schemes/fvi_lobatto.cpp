@@ -552,6 +552,9 @@ struct Blocks {
   Eigen::MatrixXd delta, stages, tilde, memory, velocities, kinetic, forces, damping_forces, force,
       loads, state_forces;  // state_forces: g(X_a, σV_a, τ_a)
   Eigen::VectorXd times, scratch, state_velocity;
+  // Where interval_force()'s one pass reads the memory: the history's kept sum (valid until its
+  // next push), or null for `memory`.
+  const double* kept_memory = nullptr;
   void resize(Eigen::Index d, int s) {
     for (Eigen::MatrixXd* m : {&delta, &stages, &tilde, &memory, &velocities, &kinetic, &forces,
                                &damping_forces, &force, &loads, &state_forces}) {
@@ -974,7 +977,7 @@ void LobattoStepper::interval_force(Blocks& b, const Eigen::MatrixXd& current, i
     r.delta = b.delta.data();
     r.stages = b.stages.data();
     r.forces = b.forces.data();
-    r.memory = b.memory.data();
+    r.memory = b.kept_memory != nullptr ? b.kept_memory : b.memory.data();
     r.loads = has_loads_ ? b.loads.data() : nullptr;
     r.velocities = b.velocities.data();
     r.tilde = b.tilde.data();
@@ -1035,9 +1038,12 @@ Status LobattoStepper::advance() {
   const double tn = problem_.time(static_cast<double>(n));
   for (int a = 0; a < s_; ++a) cur_.times(a) = tn + nodes_.c(a) * h_;
   // Known this step: the memory of the earlier intervals and the Taylor polynomial's loads.
+  cur_.kept_memory = nullptr;
   if (damped_) {
     if (history_ && history_->size() > 0) {
-      history_->sum(cur_.memory);
+      // The one pass reads the sum where the history keeps it (no d × s copy).
+      if (fused_rows_) cur_.kept_memory = history_->kept_sum();
+      if (cur_.kept_memory == nullptr) history_->sum(cur_.memory);
     } else {
       cur_.memory.setZero();
     }

@@ -49,6 +49,10 @@ class BlockHistory {
   /// out (d × s) = Σ_{j=0}^{k} Z_{k−j} W_{j+lag}ᵀ for the last pushed index k.
   /// Precondition: size() ≥ 1.
   virtual void sum(Eigen::Ref<Eigen::MatrixXd> out) const = 0;
+  /// The sum of the last push where the history keeps it (what sum() copies out, d × s
+  /// column-major with leading dimension d), else null: a step that only reads the sum can read
+  /// it there. Valid until the next push() or clear().
+  [[nodiscard]] virtual const double* kept_sum() const { return nullptr; }
   /// Forgets all pushed blocks (capacity is kept).
   virtual void clear() = 0;
 
@@ -121,6 +125,8 @@ class FastBlockHistory final : public BlockHistory, private internal::RunAheadJo
 
   void push(const Eigen::Ref<const Eigen::MatrixXd>& block) override;
   void sum(Eigen::Ref<Eigen::MatrixXd> out) const override;
+  /// push() forms the sum here (its own threads, before it returns; never the run-ahead thread).
+  [[nodiscard]] const double* kept_sum() const override { return sum_.data(); }
   void clear() override;
   [[nodiscard]] std::size_t size() const override { return size_; }
   [[nodiscard]] std::size_t capacity() const override { return capacity_; }
