@@ -406,8 +406,8 @@ Status CqMidpointStepper::step_by_rows(const Eigen::VectorXd* forcing, MomentumP
   // after the solve, the groups' passes made its next solve's residual slower (one thread,
   // β-FPUT d = 10^4: 155 against 146 µs a step; bench/RESULTS.md).
   if (!split_newton_) history_->set_rows_ahead(threads > 1);
-  // Begun before the rounds (only its bookkeeping: a step that fails before round (4) leaves the
-  // history as it was).
+  // Begun before the rounds (its bookkeeping; with the groups ahead, their recursions run in round
+  // (2)): a step that fails before round (4) leaves the pushed values and the sum as they were.
   if (factored) history_->begin_row_push(x_tilde_.data());
   // Thread `me` of `team` runs the parts [me P/team, (me + 1) P/team), P = kRowParts; `barrier`
   // waits for the team.
