@@ -570,10 +570,10 @@ struct Blocks {
 // of freedom's s stages are independent of the others', so its velocities, X̃ and interval forces
 // come out of one loop over the rows with the s × s node matrices in registers — in place of
 // about 6s + 4 passes of Eigen expressions over d × s blocks (with the step's other Eigen passes
-// ≈ 40 % of a one-thread step of fvi-lobatto3 at d = 10^4, perf; bench/RESULTS.md). The operations per element are those of the
-// general path in its order (the sums over the stages ascending); with the x86-64-v3 clone the
-// products and sums are contracted to multiply–adds, so the results differ from the general
-// path's in their last bits.
+// ≈ 40 % of a one-thread step of fvi-lobatto3 at d = 10^4, perf; bench/RESULTS.md). The operations
+// per element are those of the general path in its order (the sums over the stages ascending); with
+// the x86-64-v3 clone the products and sums are contracted to multiply–adds, so the results differ
+// from the general path's in their last bits.
 struct IntervalRows {
   Eigen::Index rows, ld;  // rows of this call; the column stride of the d × s blocks
   int last;               // force columns [0, last)
