@@ -8,8 +8,11 @@
 //
 // Both at β = 1.5 (the chain of bench/fractional_chain), ε = 1e-10, capacity 2^20 (the fits of a
 // 10^6-step run), n = 4096 pushes per iteration after a clear (the window fills after 16, so the
-// time per step is the steady one). Counters: ns_per_step, K (tail terms), n0 (exact window).
-// The ratio block / (s scalar) is read off one run (bench/RESULTS.md):
+// time per step is the steady one), on one thread each: the work of a step, not the thread
+// choice (by default the block history, with (2s + 1)/2 times the work, is offered a run-ahead
+// thread from smaller d than the scalar one, and the choice's trials made the ratio vary).
+// Counters: ns_per_step, K (tail terms), n0 (exact window). The ratio block / (s scalar) is read
+// off one run (bench/RESULTS.md):
 //   block_history_bench --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
@@ -50,6 +53,7 @@ void BM_ScalarHistories(benchmark::State& state) {
   std::vector<std::unique_ptr<fracvi::FastHistory>> histories;
   for (int i = 0; i < s; ++i)
     histories.push_back(std::make_unique<fracvi::FastHistory>(kOrder, d, kCapacity));
+  for (auto& h : histories) h->set_threads(1);
   state.counters["K"] = static_cast<double>(histories.front()->terms());
   state.counters["n0"] = static_cast<double>(histories.front()->window());
   const Eigen::MatrixXd xs = input(d, kInputColumns * s);
@@ -76,6 +80,7 @@ void BM_BlockHistory(benchmark::State& state) {
   const fracvi::RungeKuttaCq quadrature{s, kOrder, 1};
   const std::unique_ptr<fracvi::BlockHistory> history =
       fracvi::make_fast_block_history(quadrature, d, kCapacity);
+  history->set_threads(1);
   const fracvi::HistoryReport report = history->report();
   state.counters["K"] = static_cast<double>(report.exponentials);
   state.counters["n0"] = static_cast<double>(report.window);

@@ -148,6 +148,28 @@ std::shared_ptr<const RkcqTail> checked_tail(std::shared_ptr<const RkcqTail> tai
 
 }  // namespace
 
+Eigen::Index FastBlockHistory::choose_unit_stage(const RkcqTail& tail) {
+  // The stage whose coefficient is smallest against its term's largest, at its worst over the
+  // terms, is the largest; it is scaled to 1 when that ratio is above 1e-8 (so the scaled
+  // states stay within 10^8 of the plain ones; any ratio would keep the relative rounding, only
+  // overflow is avoided). Otherwise none: s. Ties go to the first stage.
+  const auto s = static_cast<Eigen::Index>(tail.stages);
+  Eigen::Index best = s;
+  double best_ratio = 1e-8;
+  for (Eigen::Index p = 0; p < s; ++p) {
+    double worst = std::numeric_limits<double>::infinity();
+    for (const Eigen::VectorXd& v : tail.right) {
+      const double largest = v.cwiseAbs().maxCoeff();
+      worst = std::min(worst, largest > 0.0 ? std::abs(v(p)) / largest : 0.0);
+    }
+    if (worst > best_ratio) {
+      best = p;
+      best_ratio = worst;
+    }
+  }
+  return best;
+}
+
 FastBlockHistory::FastBlockHistory(std::shared_ptr<const RkcqTail> tail, std::size_t lag,
                                    Eigen::Index dimension, std::size_t capacity)
     : tail_(checked_tail(std::move(tail), lag, dimension, capacity)),
@@ -169,11 +191,16 @@ FastBlockHistory::FastBlockHistory(std::shared_ptr<const RkcqTail> tail, std::si
   decay_.resize(k);
   right_.resize(k, s);
   left_.resize(k, s);
+  unit_stage_ = choose_unit_stage(*tail_);
   for (Eigen::Index i = 0; i < k; ++i) {
     const auto u = static_cast<std::size_t>(i);
     decay_(i) = tail_->decays[u];
-    right_.row(i) = tail_->right[u].transpose();
-    left_.row(i) = tail_->gammas[u] * tail_->left[u].transpose();
+    const Eigen::VectorXd& v = tail_->right[u];
+    // Y_i kept as Y_i / (v_i)_p: the unit stage enters every recursion with the coefficient 1 (one
+    // multiply–add fewer per term), γ_i (u_i)_c (v_i)_p weighs it into the outputs.
+    const double scale = unit_stage_ < s ? v(unit_stage_) : 1.0;
+    for (Eigen::Index e = 0; e < s; ++e) right_(i, e) = v(stage_at(e)) / scale;
+    left_.row(i) = (tail_->gammas[u] * scale) * tail_->left[u].transpose();
   }
   state_.setZero(dimension, k);
   partial_.setZero(dimension, s);
@@ -195,9 +222,10 @@ struct BlockHistoryRows {
   double* sum;               // d × s
   const double* block;       // Z_k, d × s with column stride block_ld (null: run ahead)
   const double* decay;       // r_i
-  const double* right;       // K × s: (v_i)_e at e·K + i
-  const double* left;        // K × s: γ_i (u_i)_c at c·K + i
-  const double* head;        // (n0·s) × s: column c holds the window's weights of output c
+  const double* right;  // K × s: (v_i)_e at e·K + i, the stages in kernel order (step_columns)
+  const double* left;   // K × s: γ_i (u_i)_c at c·K + i
+  Eigen::Index unit_stage;  // the stage first in kernel order (FastBlockHistory::unit_stage_)
+  const double* head;       // (n0·s) × s: column c holds the window's weights of output c
 };
 
 }  // namespace internal
@@ -240,8 +268,13 @@ template <int S>
   FRACVI_INDEPENDENT_ITERATIONS
   for (Eigen::Index r = 0; r < n; ++r) {
     const double z0 = c0[r], z1 = c1[r], z2 = c2[r], z3 = c3[r];
-    for (int c = 0; c < S; ++c)
-      out[c][r] = in[c][r] + ((h[c][0] * z0 + h[c][1] * z1) + (h[c][2] * z2 + h[c][3] * z3));
+    // One multiply–add a term, oldest first (the pairwise form took six operations for four).
+    for (int c = 0; c < S; ++c) {
+      double o = in[c][r] + h[c][0] * z0;
+      o += h[c][1] * z1;
+      o += h[c][2] * z2;
+      out[c][r] = o + h[c][3] * z3;
+    }
   }
 }
 
@@ -277,14 +310,25 @@ template <int S>
 // output plus t, −0 included, without a pass that zeroes them. kSteps pushes in one pass
 // (older_rows_two_steps): push k + t's leaving block x[t] enters after push k + t − 1's, its
 // terms going to out[t]; each element sees the one-step operations of push k, then of push
-// k + 1, in that order, so the numbers are those of one-step passes bit for bit.
+// k + 1, in that order, so the numbers are those of one-step passes bit for bit. kUnit: the
+// first stage in kernel order enters with the coefficient 1 (FastBlockHistory::unit_stage_), so
+// a term costs 2s multiply–adds instead of 2s + 1.
 template <int S, int kSteps>
 struct StepColumns {
   const double* x[kSteps][S];  // the stage vectors of Z_{k+t−n0}, leaving the window at push k + t
   double* out[kSteps][S];      // push k + t's outputs
 };
 
-template <int S, bool kFirst, int kSteps>
+// A recursion's new value: r Y + Σ_e v_e z_e, the stages in kernel order.
+template <int S, bool kUnit>
+[[gnu::always_inline]] inline double recurse(double a, const double* v, double y,
+                                             const double* const* x, Eigen::Index r) {
+  double w = kUnit ? a * y + x[0][r] : a * y + v[0] * x[0][r];
+  for (int e = 1; e < S; ++e) w += v[e] * x[e][r];
+  return w;
+}
+
+template <int S, bool kUnit, bool kFirst, int kSteps>
 [[gnu::always_inline]] inline void recursion_group(const BlockHistoryRows& blk,
                                                    const StepColumns<S, kSteps>& in,
                                                    Eigen::Index i) {
@@ -312,20 +356,16 @@ template <int S, bool kFirst, int kSteps>
   for (Eigen::Index r = 0; r < n; ++r) {
     double w0 = y0[r], w1 = y1[r], w2 = y2[r], w3 = y3[r];
     for (int t = 0; t < kSteps; ++t) {
-      w0 *= a[0];
-      w1 *= a[1];
-      w2 *= a[2];
-      w3 *= a[3];
-      for (int e = 0; e < S; ++e) {
-        const double z = x[t][e][r];
-        w0 += v[0][e] * z;
-        w1 += v[1][e] * z;
-        w2 += v[2][e] * z;
-        w3 += v[3][e] * z;
-      }
+      w0 = recurse<S, kUnit>(a[0], v[0], w0, x[t], r);
+      w1 = recurse<S, kUnit>(a[1], v[1], w1, x[t], r);
+      w2 = recurse<S, kUnit>(a[2], v[2], w2, x[t], r);
+      w3 = recurse<S, kUnit>(a[3], v[3], w3, x[t], r);
+      // One multiply–add a term, in ascending i (the pairwise form took six operations for four).
       for (int c = 0; c < S; ++c) {
-        out[t][c][r] = (kFirst ? 0.0 : out[t][c][r]) +
-                       ((u[0][c] * w0 + u[1][c] * w1) + (u[2][c] * w2 + u[3][c] * w3));
+        double o = (kFirst ? 0.0 : out[t][c][r]) + u[0][c] * w0;
+        o += u[1][c] * w1;
+        o += u[2][c] * w2;
+        out[t][c][r] = o + u[3][c] * w3;
       }
     }
     y0[r] = w0;
@@ -338,57 +378,62 @@ template <int S, bool kFirst, int kSteps>
 // The kernels for s stages. As FastHistory's kernels (fast_history.cpp), the loops run along the
 // degrees of freedom (contiguous columns, no horizontal sums), and four recursions share one load
 // and store of the s output columns: per term Y_i ← r_i Y_i + Σ_e (v_i)_e Z_{k−n0}(:, e) and
-// out(:, c) += γ_i (u_i)_c Y_i, i.e. K (2s + 1) multiply–adds per degree of freedom; then the
-// window, n0·s columns against s outputs. (The layout of one degree of freedom per pass, with the
-// loops over the K terms, ran at 4–7 times s scalar histories per step at d = 100 … 1000:
-// bench/block_history_bench.cpp.)
+// out(:, c) += γ_i (u_i)_c Y_i, i.e. 2sK multiply–adds per degree of freedom (kUnit; one more a
+// term without); then the window, n0·s columns against s outputs. (The layout of one degree of
+// freedom per pass, with the loops over the K terms, ran at 4–7 times s scalar histories per step
+// at d = 100 … 1000: bench/block_history_bench.cpp.)
 // recursions: the recursions of kSteps pushes (push k + t fed with Z_{k+t−n0}), into their
 // outputs.
-template <int S, int kSteps>
+template <int S, bool kUnit, int kSteps>
 [[gnu::always_inline]] inline void recursions(const BlockHistoryRows& blk,
                                               const StepColumns<S, kSteps>& in) {
   const Eigen::Index n = blk.rows, ld = blk.ld, terms = blk.terms;
   Eigen::Index i = 0;
   if (terms >= 4) {
-    recursion_group<S, true, kSteps>(blk, in, 0);
+    recursion_group<S, kUnit, true, kSteps>(blk, in, 0);
     i = 4;
   } else {
     for (int t = 0; t < kSteps; ++t)
       for (int c = 0; c < S; ++c)
         for (Eigen::Index r = 0; r < n; ++r) in.out[t][c][r] = 0.0;
   }
-  for (; i + 4 <= terms; i += 4) recursion_group<S, false, kSteps>(blk, in, i);
+  for (; i + 4 <= terms; i += 4) recursion_group<S, kUnit, false, kSteps>(blk, in, i);
   for (; i < terms; ++i) {
     double* y = blk.state + i * ld;
     const double a = blk.decay[i];
+    double v[S], u[S];
+    for (int e = 0; e < S; ++e) v[e] = blk.right[e * terms + i];
+    for (int c = 0; c < S; ++c) u[c] = blk.left[c * terms + i];
     FRACVI_INDEPENDENT_ITERATIONS
     for (Eigen::Index r = 0; r < n; ++r) {
       double w = y[r];
       for (int t = 0; t < kSteps; ++t) {
-        w *= a;
-        for (int e = 0; e < S; ++e) w += blk.right[e * terms + i] * in.x[t][e][r];
-        for (int c = 0; c < S; ++c) in.out[t][c][r] += blk.left[c * terms + i] * w;
+        w = recurse<S, kUnit>(a, v, w, in.x[t], r);
+        for (int c = 0; c < S; ++c) in.out[t][c][r] += u[c] * w;
       }
       y[r] = w;
     }
   }
 }
 
-// The stage vectors of ring position `position` and the s output columns at `outputs`.
+// The stage vectors of ring position `position`, in kernel order (the unit stage first, then the
+// others in ascending order), and the s output columns at `outputs`.
 template <int S>
 [[gnu::always_inline]] inline void step_columns(const BlockHistoryRows& blk, Eigen::Index position,
                                                 double* outputs, const double** x, double** out) {
-  for (int e = 0; e < S; ++e) x[e] = blk.ring + (position * S + e) * blk.ld;
+  const Eigen::Index p = blk.unit_stage < S ? blk.unit_stage : 0;
+  x[0] = blk.ring + (position * S + p) * blk.ld;
+  for (int e = 1; e < S; ++e) x[e] = blk.ring + (position * S + (e <= p ? e - 1 : e)) * blk.ld;
   for (int c = 0; c < S; ++c) out[c] = outputs + c * blk.ld;
 }
 
 // older_rows: the recursions (fed with Z_{k−n0}, which sits in the slot Z_k will take) and the
 // window's columns before newest_start(), into `partial`.
-template <int S>
+template <int S, bool kUnit>
 [[gnu::always_inline]] inline void older_rows(const BlockHistoryRows& blk) {
   StepColumns<S, 1> in;
   step_columns<S>(blk, blk.slot, blk.partial, in.x[0], in.out[0]);
-  recursions<S, 1>(blk, in);
+  recursions<S, kUnit, 1>(blk, in);
   add_window<S>(blk, in.out[0], 0, newest_start(blk.window * S, S));
 }
 
@@ -396,14 +441,14 @@ template <int S>
 // runs them and no push is run ahead): Z_{k−n0} (ring position blk.slot) and Z_{k+1−n0}
 // (`next_slot`) enter every Y_i, which is loaded and stored once; push k's terms go to
 // blk.partial, push k + 1's to `next_partial`; then push k's older window.
-template <int S>
+template <int S, bool kUnit>
 [[gnu::always_inline]] inline void older_rows_two_steps(const BlockHistoryRows& blk,
                                                         Eigen::Index next_slot,
                                                         double* next_partial) {
   StepColumns<S, 2> in;
   step_columns<S>(blk, blk.slot, blk.partial, in.x[0], in.out[0]);
   step_columns<S>(blk, next_slot, next_partial, in.x[1], in.out[1]);
-  recursions<S, 2>(blk, in);
+  recursions<S, kUnit, 2>(blk, in);
   add_window<S>(blk, in.out[0], 0, newest_start(blk.window * S, S));
 }
 
@@ -443,15 +488,35 @@ template <int S>
   }
 }
 
-// The kernels of a push for S stages (s = 2, 3, 4: checked_tail() and RungeKuttaCq), each with the
-// x86-64-v3 clone.
-template <int S>
-struct Kernels {
-  FRACVI_HOT_KERNEL static void older(const BlockHistoryRows& blk) { older_rows<S>(blk); }
+// The kernels of a push for S stages (s = 2, 3, 4: checked_tail() and RungeKuttaCq) with or
+// without a unit stage, each with the x86-64-v3 clone; the recursions also as x86-64-v4 variants
+// (kWide): a group of four holds 4(2s + 1) coefficients, which AVX2's 16 registers cannot keep
+// (GCC reloads them from the stack each row: the loop was bound by loads), AVX-512's 32 can
+// (bench/block_history_bench: s = 3, 4 at d = 100 and 1000, 1.1–1.3× faster; bench/RESULTS.md).
+template <int S, bool kUnit, bool kWide>
+struct Kernels;
+template <int S, bool kUnit>
+struct Kernels<S, kUnit, false> {
+  FRACVI_HOT_KERNEL static void older(const BlockHistoryRows& blk) { older_rows<S, kUnit>(blk); }
   FRACVI_HOT_KERNEL static void older_two_steps(const BlockHistoryRows& blk, Eigen::Index next_slot,
                                                 double* next_partial) {
-    older_rows_two_steps<S>(blk, next_slot, next_partial);
+    older_rows_two_steps<S, kUnit>(blk, next_slot, next_partial);
   }
+};
+template <int S, bool kUnit>
+struct Kernels<S, kUnit, true> {
+  FRACVI_WIDE_REGISTERS_KERNEL static void older(const BlockHistoryRows& blk) {
+    older_rows<S, kUnit>(blk);
+  }
+  FRACVI_WIDE_REGISTERS_KERNEL static void older_two_steps(const BlockHistoryRows& blk,
+                                                           Eigen::Index next_slot,
+                                                           double* next_partial) {
+    older_rows_two_steps<S, kUnit>(blk, next_slot, next_partial);
+  }
+};
+// The window's passes (four columns a group: 4s weights) fit AVX2's registers.
+template <int S>
+struct WindowKernels {
   FRACVI_HOT_KERNEL static void window(const BlockHistoryRows& blk) { older_window<S>(blk); }
   FRACVI_HOT_KERNEL static void newest(const BlockHistoryRows& blk) { newest_rows<S>(blk); }
 };
@@ -462,13 +527,23 @@ struct StageKernels {
   void (*window)(const BlockHistoryRows&);
   void (*newest)(const BlockHistoryRows&);
 };
+template <int S, bool kUnit, bool kWide>
+constexpr StageKernels kStageKernels{Kernels<S, kUnit, kWide>::older,
+                                     Kernels<S, kUnit, kWide>::older_two_steps,
+                                     WindowKernels<S>::window, WindowKernels<S>::newest};
+template <int S, bool kUnit>
+StageKernels kernels_of(bool wide) {
+  return wide ? kStageKernels<S, kUnit, true> : kStageKernels<S, kUnit, false>;
+}
 template <int S>
-constexpr StageKernels kStageKernels{Kernels<S>::older, Kernels<S>::older_two_steps,
-                                     Kernels<S>::window, Kernels<S>::newest};
-StageKernels stage_kernels(Eigen::Index s) {
-  if (s == 2) return kStageKernels<2>;
-  if (s == 3) return kStageKernels<3>;
-  return kStageKernels<4>;
+StageKernels kernels_of(bool unit, bool wide) {
+  return unit ? kernels_of<S, true>(wide) : kernels_of<S, false>(wide);
+}
+StageKernels stage_kernels(Eigen::Index s, bool unit) {
+  const bool wide = internal::wide_registers();
+  if (s == 2) return kernels_of<2>(unit, wide);
+  if (s == 3) return kernels_of<3>(unit, wide);
+  return kernels_of<4>(unit, wide);
 }
 
 // Blocks of kBlock rows keep the s output columns in L1 while the K recursions pass over them.
@@ -495,13 +570,14 @@ internal::BlockHistoryRows FastBlockHistory::rows(Eigen::Index b, Eigen::Index n
           decay_.data(),
           right_.data(),
           left_.data(),
+          unit_stage_,
           head_.data()};
 }
 
 void FastBlockHistory::run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot,
                                  Eigen::Index first) {
   const Eigen::Index terms = decay_.size();
-  const auto older = stage_kernels(stages_).older;
+  const auto older = stage_kernels(stages_, unit_stage_ < stages_).older;
   for (Eigen::Index b = lo; b < hi; b += kBlock)
     older(rows(b, std::min(kBlock, hi - b), terms, leaving_slot, first, nullptr));
 }
@@ -516,7 +592,7 @@ void FastBlockHistory::push(const Eigen::Ref<const Eigen::MatrixXd>& block) {
   // (each position s columns); before k = n0 − 1 the missing ones are the zeros the ring was
   // cleared to.
   const auto first = static_cast<Eigen::Index>((size_ + 1) % window);
-  const StageKernels kernels = stage_kernels(stages_);
+  const StageKernels kernels = stage_kernels(stages_, unit_stage_ < stages_);
   const internal::RunAhead::Turn turn = run_ahead_.begin(size_, window, capacity_);
   // One thread runs this push's recursions and no thread runs the next push's: run both in one
   // pass over the state (older_rows_two_steps), Z_{k+1−n0} being at ring position `first`, and the
@@ -577,16 +653,18 @@ void FastBlockHistory::visit_state(StateArchive& archive) {
   archive.expect("block_fast.capacity", capacity_);
   archive.expect("block_fast.window", static_cast<std::size_t>(window_));
   archive.expect("block_fast.terms", static_cast<std::size_t>(decay_.size()));
+  // The recursions are kept as Y_i / (v_i)_p for the unit stage p (s: none).
+  archive.expect("block_fast.unit_stage", static_cast<std::size_t>(unit_stage_));
   archive.count("block_fast.size", size_);
   if (size_ > capacity_) {
     throw CheckpointError("checkpoint record 'block_fast.size' exceeds capacity");
   }
   run_ahead_.finish();
   // Records of the degree-of-freedom-major layout (ring and recursions as d × … columns): the
-  // names differ from those of the earlier transposed layout, so that its checkpoints are refused
-  // by name rather than restored transposed.
+  // names differ from those of the earlier transposed layout and of the unscaled recursions, so
+  // that their checkpoints are refused by name rather than restored transposed or unscaled.
   archive.dense("block_fast.ring_by_stage", ring_);
-  archive.dense("block_fast.recursions_by_term", state_);
+  archive.dense("block_fast.scaled_recursions_by_term", state_);
   archive.dense("block_fast.partial", partial_);
   archive.dense("block_fast.sum", sum_);
   // Whether the recursions and `partial` already include the next push's (run ahead).

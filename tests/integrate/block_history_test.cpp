@@ -6,6 +6,8 @@
 //  * FastBlockHistory against DirectBlockHistory over whole sequences of N = 2·10^4 pushes
 //    (s = 2, 3, 4; β = 0.5, 1.5; d = 1, 3; lags 0 and 1), and a negative control (a tail used
 //    beyond its max_lag is refused; a tail fitted loosely is measurably worse);
+//  * the recursions kept divided by a unit stage's coefficients and plain, each against the sum of
+//    the represented weights;
 //  * memory independent of N, no allocation in push()/sum(), clear(), the factory, and a
 //    10^7-push run (d = 1, s = 3) against the continuous step response.
 #include <gtest/gtest.h>
@@ -15,6 +17,7 @@
 #include <cstddef>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -224,6 +227,53 @@ TEST(FastBlockHistory, LooseToleranceIsMeasurablyWorse) {
   EXPECT_GT(r.max_diff / r.max_sum, 1e-9);
   EXPECT_LE(r.max_diff, r.bound);
   std::printf("loose tail (1e-5): max|dS|/max|S| = %.2e\n", r.max_diff / r.max_sum);
+}
+
+// The sum of the represented weights (RkcqTail::weight: the head, then the rank-one terms) over
+// the blocks pushed so far, per degree of freedom: what FastBlockHistory computes but for
+// round-off.
+Eigen::MatrixXd represented_sum(const RkcqTail& tail, std::size_t lag,
+                                const std::vector<Eigen::MatrixXd>& z, std::size_t k) {
+  std::vector<Eigen::MatrixXd> w;
+  for (std::size_t j = 0; j <= k + lag; ++j) w.push_back(tail.weight(j));
+  return naive_sum(w, lag, z, k);
+}
+
+TEST(FastBlockHistory, UnitStageAndPlainRecursionsBothSumTheRepresentation) {
+  // Each recursion is kept divided by its (v_i)_p for the unit stage p (one multiply–add fewer a
+  // term); where no stage qualifies the recursions are the plain ones. Both against the
+  // represented weights themselves (so the fit's 1e-10 does not hide a scaling error): the tail of
+  // s = 3, β = 1.5 as fitted, and with one zero coefficient per stage (no unit stage).
+  const RkcqTail fitted =
+      fit_rkcq_tail({.stages = 3, .order = 1.5, .tolerance = 1e-10, .max_lag = 4096, .window = 17});
+  RkcqTail plain = fitted;
+  for (Eigen::Index e = 0; e < 3; ++e) plain.right[static_cast<std::size_t>(5 * e)](e) = 0.0;
+  constexpr Eigen::Index kD = 9;  // two row vectors and a remainder
+  constexpr std::size_t kN = 160;
+  const auto z = rough_blocks(kN, kD, 3, 31u);
+  for (const bool unit : {true, false}) {
+    const RkcqTail& tail = unit ? fitted : plain;
+    FastBlockHistory h(std::make_shared<const RkcqTail>(tail), 1, kD, kN);
+    if (unit) {
+      EXPECT_LT(h.unit_stage(), 3);
+    } else {
+      EXPECT_EQ(h.unit_stage(), 3);
+    }
+    Eigen::MatrixXd out(kD, 3);
+    double max_rel = 0.0;
+    for (std::size_t k = 0; k < kN; ++k) {
+      h.push(z[k]);
+      if (k % 7 != 0 && k + 1 != kN) continue;
+      h.sum(out);
+      const Eigen::MatrixXd expected = represented_sum(tail, 1, z, k);
+      max_rel = std::max(max_rel,
+                         (out - expected).cwiseAbs().maxCoeff() / expected.cwiseAbs().maxCoeff());
+    }
+    // K ≈ 30 terms and n0·s² window products a sum, round-off of the sizes of the terms.
+    EXPECT_LE(max_rel, 1e-13) << "unit " << unit;
+    std::printf("unit stage %ld, K = %zu: max relative difference from the representation %.2e\n",
+                static_cast<long>(h.unit_stage()), h.terms(), max_rel);
+  }
 }
 
 TEST(FastBlockHistory, IntegerOrdersAreLocalAndExact) {

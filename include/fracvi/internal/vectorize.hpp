@@ -1,5 +1,5 @@
-// Loop annotations and the x86-64-v3 clones of the hand-vectorised kernels, and the size from which
-// the steps' per-element passes are vectorised (internal).
+// Loop annotations, the x86-64-v3 clones and x86-64-v4 variants of the hand-vectorised kernels, and
+// the size from which the steps' per-element passes are vectorised (internal).
 #pragma once
 
 #include <Eigen/Core>
@@ -24,7 +24,32 @@
 #define FRACVI_HOT_KERNEL
 #endif
 
+// A kernel whose loop invariants do not fit AVX2's 16 vector registers (the block history's four
+// recursions hold 4(2s + 1) coefficients) can carry a second variant for CPUs with AVX-512
+// (x86-64-v4): the same 256-bit operations with 32 registers (EVEX encoding; no 512-bit
+// instruction, so no lower clock than the AVX2 clone's), chosen by the caller where
+// wide_registers() holds. target_clones cannot limit the width, hence the caller's choice.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && !defined(__AVX512F__)
+#define FRACVI_WIDE_REGISTERS_KERNEL \
+  __attribute__((target("arch=x86-64-v4,prefer-vector-width=256")))
+#define FRACVI_HAS_WIDE_REGISTERS_KERNEL 1
+#else
+#define FRACVI_WIDE_REGISTERS_KERNEL FRACVI_HOT_KERNEL
+#define FRACVI_HAS_WIDE_REGISTERS_KERNEL 0
+#endif
+
 namespace fracvi::internal {
+
+/// Whether the FRACVI_WIDE_REGISTERS_KERNEL variants run here: built with them and an x86-64-v4
+/// CPU. (Without them the variants are the hot kernels themselves.)
+inline bool wide_registers() {
+#if FRACVI_HAS_WIDE_REGISTERS_KERNEL
+  static const bool has = __builtin_cpu_supports("x86-64-v4") != 0;
+  return has;
+#else
+  return false;
+#endif
+}
 
 // Per-element passes that carry a reduction (a max, a finiteness check) do not vectorise as plain
 // loops (GCC keeps a floating-point max or an `&=` of isfinite scalar: ≈ 3 cycles per element at

@@ -15,7 +15,7 @@
 //  * FastBlockHistory: the n0 most recent lags with exact blocks, and the tail through
 //    W_j ≈ Σ_i γ_i r_i^{j−n0} u_i v_iᵀ (fit_rkcq_tail(), docs/theory/rkcq_weights.md §10): per tail
 //    term i one d-vector Y_i ← r_i Y_i + Z_{k−n0} v_i, and the tail is Σ_i γ_i Y_i u_iᵀ. Work
-//    O((K(2s + 1) + n0 s²)·d) per step, memory O((K + n0 s)·d) independent of N
+//    O((2sK + n0 s²)·d) per step, memory O((K + n0 s)·d) independent of N
 //    (docs/theory/fast_history.md, "Block history (Runge–Kutta CQ)"). Integer orders (W_j = 0
 //    beyond j = β) use the same class with no tail terms: a local history.
 //
@@ -160,6 +160,10 @@ class FastBlockHistory final : public BlockHistory, private internal::RunAheadJo
   [[nodiscard]] std::size_t window() const { return static_cast<std::size_t>(window_); }
   /// K, the number of tail terms (recursions per degree of freedom).
   [[nodiscard]] std::size_t terms() const { return static_cast<std::size_t>(decay_.size()); }
+  /// The stage p whose values enter every recursion with the coefficient 1 (each recursion kept
+  /// divided by its (v_i)_p: 2s multiply–adds a term instead of 2s + 1), or stages() when no
+  /// stage's coefficient is above 1e-8 of its term's largest in every term.
+  [[nodiscard]] Eigen::Index unit_stage() const { return unit_stage_; }
   [[nodiscard]] HistoryReport report() const override {
     return {kind(), memory_bytes(), terms(), window(), internal::thread_use(run_ahead_)};
   }
@@ -173,9 +177,12 @@ class FastBlockHistory final : public BlockHistory, private internal::RunAheadJo
   Eigen::MatrixXd head_;  // (n0·s) × s; rows t·s … t·s + s − 1 hold W_{lag+n0−1−t}ᵀ (oldest first)
   Eigen::MatrixXd ring_;   // d × (n0·s); column t·s + e: stage e of ring position t
   Eigen::VectorXd decay_;  // r_i (K)
-  Eigen::MatrixXd right_;  // K × s, column e: (v_i)_e
-  Eigen::MatrixXd left_;   // K × s, column c: γ_i (u_i)_c
-  Eigen::MatrixXd state_;  // d × K, column i: Y_i
+  // p, the unit stage (unit_stage(); s: none): each recursion is kept divided by its (v_i)_p, so
+  // that Z(:, p) enters it with the coefficient 1.
+  Eigen::Index unit_stage_;
+  Eigen::MatrixXd right_;  // K × s, column e: (v_i)_{stage_at(e)} / (v_i)_p (kernel order)
+  Eigen::MatrixXd left_;   // K × s, column c: γ_i (u_i)_c (v_i)_p
+  Eigen::MatrixXd state_;  // d × K, column i: Y_i / (v_i)_p
   // d × s: the recursions' terms and the window's before its first addition with Z_k (the sum
   // but for those; block_history.cpp, newest_start).
   Eigen::MatrixXd partial_;
@@ -188,9 +195,20 @@ class FastBlockHistory final : public BlockHistory, private internal::RunAheadJo
   // writes are destroyed).
   internal::RunAhead run_ahead_;
 
-  // Multiply–adds per push: K(2s + 1) + n0·s² per degree of freedom.
+  // The stage whose coefficient each recursion's input is scaled to 1: the one whose smallest
+  // |(v_i)_p| / max_e |(v_i)_e| over the terms is the largest, if that is above 1e-8; else s
+  // (none).
+  static Eigen::Index choose_unit_stage(const RkcqTail& tail);
+  // The stage at position e of the kernels' order: the unit stage first, then the others in
+  // ascending order (the identity without a unit stage).
+  [[nodiscard]] Eigen::Index stage_at(Eigen::Index e) const {
+    if (unit_stage_ == stages_) return e;
+    return e == 0 ? unit_stage_ : (e <= unit_stage_ ? e - 1 : e);
+  }
+  // Multiply–adds per push: 2sK (K more without a unit stage) + n0·s² per degree of freedom.
   [[nodiscard]] Eigen::Index push_work() const {
-    return sum_.rows() * (decay_.size() * (2 * stages_ + 1) + window_ * stages_ * stages_);
+    const Eigen::Index per_term = 2 * stages_ + (unit_stage_ == stages_ ? 1 : 0);
+    return sum_.rows() * (decay_.size() * per_term + window_ * stages_ * stages_);
   }
   // Rows [b, b + n) of a push: `terms` recursions (0: none) fed from ring position `slot`, the
   // window from position `first`, the new block (null: the recursions and older window alone).
