@@ -598,13 +598,14 @@ void FastBlockHistory::push(const Eigen::Ref<const Eigen::MatrixXd>& block) {
   // pass over the state (older_rows_two_steps), Z_{k+1−n0} being at ring position `first`, and the
   // next push's older window once Z_k is in the ring (it ends before Z_{k+1}: newest_start()) —
   // what the run-ahead thread would have done, into partial_; the next push then runs as one run
-  // ahead (the same numbers). This push's own partial sum goes to step_partial_. Two stages only:
-  // there the pass is bound by moving the state, and two steps ran 1.08–1.21× faster
-  // (bench/block_history_bench, d = 100 and 1000); with three and four the recursions' (2s + 1)
-  // multiply–adds per term bound it (3 % slower to 2 % faster, and 5 % slower at s = 4, d = 1000;
-  // bench/RESULTS.md 2026-12-02).
-  const bool two_steps = stages_ == 2 && recurse && !turn.ahead && turn.split == 1 &&
-                         !turn.post_next && size_ + 1 < capacity_ && n0 >= 2;
+  // ahead (the same numbers). This push's own partial sum goes to step_partial_. Two stages, and
+  // three and four with the wide-register kernels: at s = 2 the pass is bound by moving the state,
+  // and two steps ran 1.08–1.21× faster (bench/block_history_bench, d = 100 and 1000); with three
+  // and four stages the AVX2 kernels are bound by reloading their coefficients (3 % slower to 2 %
+  // faster, and 5 % slower at s = 4, d = 1000), the x86-64-v4 ones ran up to 1.1× faster (s = 4;
+  // s = 3 even; bench/RESULTS.md 2026-12-02).
+  const bool two_steps = (stages_ == 2 || internal::wide_registers()) && recurse && !turn.ahead &&
+                         turn.split == 1 && !turn.post_next && size_ + 1 < capacity_ && n0 >= 2;
   const auto next_first = static_cast<Eigen::Index>((size_ + 2) % window);
   auto update = [&](Eigen::Index lo, Eigen::Index hi) {
     for (Eigen::Index b = lo; b < hi; b += kBlock) {
