@@ -492,7 +492,8 @@ template <int S>
 // without a unit stage, each with the x86-64-v3 clone; the recursions also as x86-64-v4 variants
 // (kWide): a group of four holds 4(2s + 1) coefficients, which AVX2's 16 registers cannot keep
 // (GCC reloads them from the stack each row: the loop was bound by loads), AVX-512's 32 can
-// (bench/block_history_bench: s = 3, 4 at d = 100 and 1000, 1.1–1.3× faster; bench/RESULTS.md).
+// (bench/block_history_bench at d = 100 and 1000: s = 4 1.19–1.31× faster, s = 3 0.89–1.21×;
+// bench/RESULTS.md 2026-12-02).
 template <int S, bool kUnit, bool kWide>
 struct Kernels;
 template <int S, bool kUnit>
