@@ -7,7 +7,7 @@
 //    (s = 2, 3, 4; β = 0.5, 1.5; d = 1, 3; lags 0 and 1), and a negative control (a tail used
 //    beyond its max_lag is refused; a tail fitted loosely is measurably worse);
 //  * the recursions kept divided by a unit stage's coefficients and plain, each against the sum of
-//    the represented weights;
+//    the represented weights; the x86-64-v4 variants bit for bit the AVX2 kernels;
 //  * memory independent of N, no allocation in push()/sum(), clear(), the factory, and a
 //    10^7-push run (d = 1, s = 3) against the continuous step response.
 #include <gtest/gtest.h>
@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "fracvi/fractional/runge_kutta_cq.hpp"
+#include "fracvi/internal/vectorize.hpp"
 #include "fracvi/memory/block_history.hpp"
 #include "fracvi/memory/fast_history.hpp"
 
@@ -273,6 +274,36 @@ TEST(FastBlockHistory, UnitStageAndPlainRecursionsBothSumTheRepresentation) {
     EXPECT_LE(max_rel, 1e-13) << "unit " << unit;
     std::printf("unit stage %ld, K = %zu: max relative difference from the representation %.2e\n",
                 static_cast<long>(h.unit_stage()), h.terms(), max_rel);
+  }
+}
+
+TEST(FastBlockHistory, WideRegisterKernelsAreTheAvx2KernelsBitForBit) {
+  // The recursions' x86-64-v4 variant (32 registers; with it, two pushes a pass for every s) and
+  // the AVX2 kernels (one push a pass for s = 3, 4) make the same operations in the same order:
+  // the same sums bit for bit, push by push. On a CPU without AVX-512 both runs take the AVX2
+  // kernels (said below).
+  const bool available = internal::wide_registers_available();
+  std::printf("x86-64-v4 variants %s\n", available ? "available" : "not available here");
+  constexpr Eigen::Index kD = 37;  // row vectors and a remainder
+  constexpr std::size_t kN = 300;
+  for (const int s : {2, 3, 4}) {
+    const auto z = rough_blocks(kN, kD, s, 41u);
+    std::vector<Eigen::MatrixXd> sums[2];
+    for (const bool wide : {false, true}) {
+      internal::wide_registers_allowed = wide;
+      auto h = make_fast_block_history(RungeKuttaCq{s, 1.5, 1}, kD, kN);
+      h->set_threads(1);
+      Eigen::MatrixXd out(kD, s);
+      for (const auto& block : z) {
+        h->push(block);
+        h->sum(out);
+        sums[wide ? 1 : 0].push_back(out);
+      }
+    }
+    internal::wide_registers_allowed = true;
+    for (std::size_t k = 0; k < kN; ++k) {
+      ASSERT_TRUE((sums[0][k].array() == sums[1][k].array()).all()) << "s " << s << " push " << k;
+    }
   }
 }
 

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <atomic>
 #include <cstddef>
 #include <cstring>
 
@@ -40,15 +41,23 @@
 
 namespace fracvi::internal {
 
-/// Whether the FRACVI_WIDE_REGISTERS_KERNEL variants run here: built with them and an x86-64-v4
-/// CPU. (Without them the variants are the hot kernels themselves.)
-inline bool wide_registers() {
+/// Whether this build and CPU can run the FRACVI_WIDE_REGISTERS_KERNEL variants (x86-64-v4).
+inline bool wide_registers_available() {
 #if FRACVI_HAS_WIDE_REGISTERS_KERNEL
   static const bool has = __builtin_cpu_supports("x86-64-v4") != 0;
   return has;
 #else
   return false;
 #endif
+}
+
+/// Tests turn the wide variants off to run the AVX2 kernels on a CPU that has both.
+inline std::atomic<bool> wide_registers_allowed{true};
+
+/// Whether the FRACVI_WIDE_REGISTERS_KERNEL variants run here: available and allowed. (Without
+/// them the variants are the hot kernels themselves.)
+inline bool wide_registers() {
+  return wide_registers_available() && wide_registers_allowed.load(std::memory_order_relaxed);
 }
 
 // Per-element passes that carry a reduction (a max, a finiteness check) do not vectorise as plain
