@@ -603,8 +603,8 @@ void FastBlockHistory::push(const Eigen::Ref<const Eigen::MatrixXd>& block) {
   // three and four with the wide-register kernels: at s = 2 the pass is bound by moving the state,
   // and two steps ran 1.08–1.21× faster (bench/block_history_bench, d = 100 and 1000); with three
   // and four stages the AVX2 kernels are bound by reloading their coefficients (3 % slower to 2 %
-  // faster, and 5 % slower at s = 4, d = 1000), the x86-64-v4 ones ran up to 1.1× faster (s = 4;
-  // s = 3 even; bench/RESULTS.md 2026-12-02).
+  // faster, and 5 % slower at s = 4, d = 1000), the x86-64-v4 ones 0.96–1.19× (s = 4, faster in
+  // five rounds of six; s = 3 even; bench/RESULTS.md 2026-12-02).
   const bool two_steps = (stages_ == 2 || internal::wide_registers()) && recurse && !turn.ahead &&
                          turn.split == 1 && !turn.post_next && size_ + 1 < capacity_ && n0 >= 2;
   const auto next_first = static_cast<Eigen::Index>((size_ + 2) % window);
