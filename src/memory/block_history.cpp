@@ -148,6 +148,17 @@ std::shared_ptr<const RkcqTail> checked_tail(std::shared_ptr<const RkcqTail> tai
 
 }  // namespace
 
+namespace internal {
+
+// The stage at position e of the kernels' order: the unit stage p first, then the others in
+// ascending order (the identity without a unit stage, p = s).
+constexpr Eigen::Index stage_in_kernel_order(Eigen::Index e, Eigen::Index p, Eigen::Index s) {
+  if (p >= s) return e;
+  return e == 0 ? p : (e <= p ? e - 1 : e);
+}
+
+}  // namespace internal
+
 Eigen::Index FastBlockHistory::choose_unit_stage(const RkcqTail& tail) {
   // The stage whose coefficient is smallest against its term's largest, at its worst over the
   // terms, is the largest; it is scaled to 1 when that ratio is above 1e-8 (so the scaled
@@ -199,7 +210,8 @@ FastBlockHistory::FastBlockHistory(std::shared_ptr<const RkcqTail> tail, std::si
     // Y_i kept as Y_i / (v_i)_p: the unit stage enters every recursion with the coefficient 1 (one
     // multiply–add fewer per term), γ_i (u_i)_c (v_i)_p weighs it into the outputs.
     const double scale = unit_stage_ < s ? v(unit_stage_) : 1.0;
-    for (Eigen::Index e = 0; e < s; ++e) right_(i, e) = v(stage_at(e)) / scale;
+    for (Eigen::Index e = 0; e < s; ++e)
+      right_(i, e) = v(internal::stage_in_kernel_order(e, unit_stage_, s)) / scale;
     left_.row(i) = (tail_->gammas[u] * scale) * tail_->left[u].transpose();
   }
   state_.setZero(dimension, k);
@@ -421,9 +433,10 @@ template <int S, bool kUnit, int kSteps>
 template <int S>
 [[gnu::always_inline]] inline void step_columns(const BlockHistoryRows& blk, Eigen::Index position,
                                                 double* outputs, const double** x, double** out) {
-  const Eigen::Index p = blk.unit_stage < S ? blk.unit_stage : 0;
-  x[0] = blk.ring + (position * S + p) * blk.ld;
-  for (int e = 1; e < S; ++e) x[e] = blk.ring + (position * S + (e <= p ? e - 1 : e)) * blk.ld;
+  for (int e = 0; e < S; ++e) {
+    const Eigen::Index stage = internal::stage_in_kernel_order(e, blk.unit_stage, S);
+    x[e] = blk.ring + (position * S + stage) * blk.ld;
+  }
   for (int c = 0; c < S; ++c) out[c] = outputs + c * blk.ld;
 }
 

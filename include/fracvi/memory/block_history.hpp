@@ -180,7 +180,9 @@ class FastBlockHistory final : public BlockHistory, private internal::RunAheadJo
   // p, the unit stage (unit_stage(); s: none): each recursion is kept divided by its (v_i)_p, so
   // that Z(:, p) enters it with the coefficient 1.
   Eigen::Index unit_stage_;
-  Eigen::MatrixXd right_;  // K × s, column e: (v_i)_{stage_at(e)} / (v_i)_p (kernel order)
+  // K × s, column e: (v_i)_q / (v_i)_p, q the stage at position e of the kernels' order
+  // (block_history.cpp, stage_in_kernel_order)
+  Eigen::MatrixXd right_;
   Eigen::MatrixXd left_;   // K × s, column c: γ_i (u_i)_c (v_i)_p
   Eigen::MatrixXd state_;  // d × K, column i: Y_i / (v_i)_p
   // d × s: the recursions' terms and the window's before its first addition with Z_k (the sum
@@ -199,12 +201,6 @@ class FastBlockHistory final : public BlockHistory, private internal::RunAheadJo
   // |(v_i)_p| / max_e |(v_i)_e| over the terms is the largest, if that is above 1e-8; else s
   // (none).
   static Eigen::Index choose_unit_stage(const RkcqTail& tail);
-  // The stage at position e of the kernels' order: the unit stage first, then the others in
-  // ascending order (the identity without a unit stage).
-  [[nodiscard]] Eigen::Index stage_at(Eigen::Index e) const {
-    if (unit_stage_ == stages_) return e;
-    return e == 0 ? unit_stage_ : (e <= unit_stage_ ? e - 1 : e);
-  }
   // Multiply–adds per push: 2sK (K more without a unit stage) + n0·s² per degree of freedom.
   [[nodiscard]] Eigen::Index push_work() const {
     const Eigen::Index per_term = 2 * stages_ + (unit_stage_ == stages_ ? 1 : 0);
