@@ -469,6 +469,20 @@ internal::FastHistoryBlock FastHistory::block(Eigen::Index b, Eigen::Index n, Ei
 
 void FastHistory::run_ahead(Eigen::Index lo, Eigen::Index hi, Eigen::Index leaving_slot,
                             Eigen::Index first) {
+  if (by_groups_) {
+    // The team of two by row groups: the passes end_row_push() planned for the next push, each
+    // pass's rows split in the proportion [lo, hi) of d (whole cache lines), so that the share
+    // RunAheadBalance sets applies to whichever group's turn it is.
+    const Eigen::Index d = ring_.rows();
+    for (int i = 0; i < group_pass_count_; ++i) {
+      const GroupPass& pass = group_passes_[i];
+      const auto row = [&](Eigen::Index r) {
+        return r == d ? pass.hi : pass.lo + (pass.hi - pass.lo) * r / d / 8 * 8;
+      };
+      if (row(lo) < row(hi)) group_pass(pass, row(lo), row(hi));
+    }
+    return;
+  }
   const Eigen::Index terms = state_.cols();
   for (Eigen::Index b = lo; b < hi; b += kBlock) {
     const Eigen::Index n = std::min(kBlock, hi - b);
@@ -520,25 +534,11 @@ void FastHistory::begin_row_push(const double* x_tilde) {
   p.own = tail_column_;
   p.by_groups = by_groups_ && size_ >= n0;
   if (p.by_groups) {
-    // Group q's turn is at the pushes k ≡ q (mod groups_): its pass runs the recursions and older
-    // windows of pushes k … k + groups_ − 1 (push k + s's older window ends with x̃_{k+s−g}, g ≥
-    // groups_, so x̃_k is not needed). A group whose ready pushes ran out before its turn (the
-    // first push with recursions, a loaded checkpoint) gets a pass up to its turn.
-    group_pass_count_ = 0;
-    for (int q = 0; q < groups_; ++q) {
-      const auto turn_in = static_cast<int>(
-          (static_cast<std::size_t>(q) + groups_ - size_ % static_cast<std::size_t>(groups_)) %
-          static_cast<std::size_t>(groups_));
-      if (turn_in != 0 && group_ready_[q] > 0) continue;
-      const auto target = static_cast<int>(
-          std::min(static_cast<std::size_t>(turn_in == 0 ? groups_ : turn_in), capacity_ - size_));
-      if (target > group_ready_[q]) {
-        group_passes_[group_pass_count_++] = {group_bounds_[q], group_bounds_[q + 1],
-                                              group_ready_[q], target - group_ready_[q]};
-        group_ready_[q] = target;
-      }
-    }
-    p.turn = run_ahead_.begin(size_, n0, capacity_, true);
+    // The team of two by groups: its thread ran the passes planned for this push (end_row_push),
+    // then planning again finds none; a push that ran on one thread posted none, and the caller
+    // runs them (push(): rows_ahead). The stepper's groups post nothing (next_ran).
+    p.turn = run_ahead_.begin(size_, n0, capacity_, !groups_by_team_);
+    plan_group_passes();
     p.turn.ahead = true;  // push_rows() adds x̃ alone
     p.run_recursions = false;
     p.steps = 1;
@@ -559,6 +559,28 @@ void FastHistory::begin_row_push(const double* x_tilde) {
                 ? static_cast<int>(std::min(
                       {static_cast<std::size_t>(kPassSteps), capacity_ - size_, n0, gap + 1}))
                 : 1;
+}
+
+void FastHistory::plan_group_passes() {
+  // Group q's turn is at the pushes k ≡ q (mod groups_): its pass runs the recursions and older
+  // windows of pushes k … k + groups_ − 1 (push k + s's older window ends with x̃_{k+s−g}, g ≥
+  // groups_, so x̃_k is not needed). A group whose ready pushes ran out before its turn (the first
+  // push with recursions, a loaded checkpoint) gets a pass up to its turn. Planning again for the
+  // same push finds nothing to add.
+  group_pass_count_ = 0;
+  for (int q = 0; q < groups_; ++q) {
+    const auto turn_in = static_cast<int>(
+        (static_cast<std::size_t>(q) + groups_ - size_ % static_cast<std::size_t>(groups_)) %
+        static_cast<std::size_t>(groups_));
+    if (turn_in != 0 && group_ready_[q] > 0) continue;
+    const auto target = static_cast<int>(
+        std::min(static_cast<std::size_t>(turn_in == 0 ? groups_ : turn_in), capacity_ - size_));
+    if (target > group_ready_[q]) {
+      group_passes_[group_pass_count_++] = {group_bounds_[q], group_bounds_[q + 1], group_ready_[q],
+                                            target - group_ready_[q]};
+      group_ready_[q] = target;
+    }
+  }
 }
 
 void FastHistory::rows_ahead(int share, int shares) {
@@ -605,7 +627,7 @@ void FastHistory::group_pass(const GroupPass& pass, Eigen::Index lo, Eigen::Inde
 
 void FastHistory::even_groups() {
   const int most = *std::max_element(group_ready_.begin(), group_ready_.begin() + groups_);
-  if (most - 1 > kPassSteps - 2) {
+  if (most > kPassSteps) {
     throw std::logic_error("FastHistory: a push begun by rows was not ended");
   }
   for (int q = 0; q < groups_; ++q) {
@@ -621,8 +643,14 @@ void FastHistory::even_groups() {
 }
 
 void FastHistory::set_rows_ahead(bool on) {
-  if (on == by_groups_) return;
-  if (!pushes_rows()) throw std::logic_error("FastHistory: rows ahead without a push by rows");
+  if (on && !pushes_rows()) {
+    throw std::logic_error("FastHistory: rows ahead without a push by rows");
+  }
+  if (groups_by_team_ || on == by_groups_) return;
+  switch_groups(on);
+}
+
+void FastHistory::switch_groups(bool on) {
   run_ahead_.finish();
   if (on) {
     // As many groups as pushes a pass can run ahead (4, or 1 when n0 is not a multiple of 4).
@@ -686,7 +714,17 @@ void FastHistory::end_row_push() {
   if (p.by_groups) {
     for (int q = 0; q < groups_; ++q) --group_ready_[q];
     tail_column_ = (p.own + 1) % kPassSteps;
-    run_ahead_.end(p.turn, p.first, p.first);  // posts nothing (next_ran)
+  }
+  if (groups_by_team_ && p.turn.post_next) {
+    // The team of two by groups: the next push's passes (x̃_k is in the ring: the next push's
+    // older windows end before x̃_{k+1}) go to its thread, which runs them while the caller
+    // computes the next step (run_ahead above).
+    plan_group_passes();
+    run_ahead_.end(p.turn, p.first, p.first);
+    return;
+  }
+  if (p.by_groups) {
+    run_ahead_.end(p.turn, p.first, p.first);  // posts nothing
     return;
   }
   if (p.steps > 1) later_ = static_cast<std::size_t>(p.steps - 1);  // it was 0: this push not ahead
@@ -708,10 +746,22 @@ void FastHistory::sum(Eigen::Ref<Eigen::VectorXd> out) const {
 
 void FastHistory::configure_threads(int threads) {
   run_ahead_.configure(threads, ring_.rows(), ring_.rows() * (state_.cols() + window_));
+  // A team of two runs the next push's passes by row groups: each push its thread runs the
+  // recursions and older windows of one group's rows for four pushes in one pass (the four-push
+  // pass of one thread, a quarter of the rows at a time) instead of one push's for all rows (one
+  // push a pass moves the state through the caches each push: ≈ 2× the work, bench/RESULTS.md).
+  // Where the window allows no groups of four (n0 not a multiple of 4), one push a pass, as before.
+  const bool by_team = run_ahead_.chooser().team() == 2 && ring_.rows() >= kAcrossTermsBelow &&
+                       window_ - newest_start(window_) >= kAheadGroups;
+  if (by_team != groups_by_team_) {
+    groups_by_team_ = false;
+    if (by_team != by_groups_) switch_groups(by_team);
+    groups_by_team_ = by_team;
+  }
 }
 
 void FastHistory::set_threads(int threads) {
-  if (by_groups_ && threads != 1) set_rows_ahead(false);
+  if (by_groups_ && !groups_by_team_ && threads != 1) switch_groups(false);
   configure_threads(threads);
 }
 
@@ -748,26 +798,27 @@ void FastHistory::visit_state(StateArchive& archive) {
     archive.dense("fast.recursions", state_);
   }
   // The next push's tail, then those of the later pushes that a pass has run (fast.later of them,
-  // in order; the record has room for kPassSteps − 2, zeros beyond): the same records whichever
-  // tails_ column each sits in. (Checkpoints written before 2026-12-02 lack fast.later and are
-  // refused by name.)
-  Eigen::MatrixXd in_order(ring_.rows(), kPassSteps - 1);
+  // in order; the record has room for kPassSteps − 1 — a team of two by groups has planned the
+  // next push's passes, up to kPassSteps pushes ready — zeros beyond): the same records whichever
+  // tails_ column each sits in. (Checkpoints written before 2026-12-03 hold kPassSteps − 2 later
+  // tails in 'fast.later_tails' and are refused by name.)
+  Eigen::MatrixXd in_order(ring_.rows(), kPassSteps);
   for (Eigen::Index s = 0; s < in_order.cols(); ++s)
     in_order.col(s) = tails_.col((tail_column_ + s) % kPassSteps);
   Eigen::VectorXd next = in_order.col(0);
-  Eigen::MatrixXd later = in_order.rightCols(kPassSteps - 2);
+  Eigen::MatrixXd later = in_order.rightCols(kPassSteps - 1);
   if (!archive.loading()) {
     for (Eigen::Index s = static_cast<Eigen::Index>(later_); s < later.cols(); ++s)
       later.col(s).setZero();
   }
   archive.dense("fast.tail", next);
   archive.count("fast.later", later_);
-  archive.dense("fast.later_tails", later);
+  archive.dense("fast.ahead_tails", later);
   if (archive.loading()) {
     tail_column_ = 0;
     tails_.setZero();
     tails_.col(0) = next;
-    tails_.rightCols(kPassSteps - 1).leftCols(kPassSteps - 2) = later;
+    tails_.rightCols(kPassSteps - 1) = later;
   }
   archive.dense("fast.sum", sum_);
   // Whether the recursions and the tail already include the next push's x̃ (run ahead).
@@ -778,10 +829,10 @@ void FastHistory::visit_state(StateArchive& archive) {
                 ring_.rows() < kAcrossTermsBelow)) {
     throw CheckpointError("checkpoint record 'fast.ahead' is set where no push runs ahead");
   }
-  if (later_ > static_cast<std::size_t>(kPassSteps - 2) || (later_ > 0 && !ahead) ||
+  if (later_ > static_cast<std::size_t>(kPassSteps - 1) || (later_ > 0 && !ahead) ||
       (later_ > 0 && size_ + later_ >= capacity_)) {
     throw CheckpointError("checkpoint record 'fast.later' = " + std::to_string(later_) +
-                          " does not fit the state (at most " + std::to_string(kPassSteps - 2) +
+                          " does not fit the state (at most " + std::to_string(kPassSteps - 1) +
                           ", with 'fast.ahead' set and the pushes within the capacity)");
   }
   if (by_groups_) {  // the groups' ready pushes from the records' form

@@ -621,10 +621,11 @@ TEST(FastHistory, PassesOfSeveralPushesKeepEveryPushsNumbers) {
           << "restored after push " << n0 + i << ", push " << k;
     }
   }
-  for (const std::size_t bad : {std::size_t{3}, std::size_t{1}}) {
-    // 3: more than a pass leaves; 1 after push n0 + 3, whose next push runs its own recursions.
+  for (const std::size_t bad : {std::size_t{4}, std::size_t{1}}) {
+    // 4: more than a pass of four pushes leaves (the next and three later); 1 after push n0 + 3,
+    // whose next push runs its own recursions.
     FastHistory restored(1.5, d, capacity);
-    StateReader reader(saved[bad == 3 ? 0 : 3], "test state");
+    StateReader reader(saved[bad == 4 ? 0 : 3], "test state");
     LaterOverride tampered(reader, bad);
     EXPECT_THROW(restored.visit_state(tampered), CheckpointError) << "fast.later = " << bad;
   }
@@ -667,6 +668,16 @@ TEST(FastHistory, PushesByRowsArePushesBitForBit) {
   EXPECT_THROW(direct.begin_row_push(xs.col(0).data()), std::logic_error);
 }
 
+// The order-1.5 Grünwald–Letnikov fit for a capacity of n pushes, with window n0 = `window` (0:
+// the fit's default).
+std::shared_ptr<const ExponentialFit> order_1_5_fit(std::size_t n, std::size_t window) {
+  ExponentialFitOptions o;
+  o.order = 1.5;
+  o.max_lag = fast_history_fit_lag(n);
+  o.window = window;
+  return shared_exponential_fit(o);
+}
+
 // Pushes run ahead by row groups (History::set_rows_ahead: the step by rows whose Newton solve
 // runs on one thread) give push()'s numbers bit for bit: with windows of 8 and the default (four
 // groups, each group's pass running four pushes, the first push with recursions bringing the
@@ -679,11 +690,7 @@ TEST(FastHistory, PushesAheadByGroupsArePushesBitForBit) {
   const std::size_t n = 150;
   const Eigen::MatrixXd xs = rough_sequence(static_cast<Eigen::Index>(n), d, 53u);
   for (const std::size_t window : {std::size_t{0}, std::size_t{8}, std::size_t{3}}) {
-    ExponentialFitOptions o;
-    o.order = 1.5;
-    o.max_lag = fast_history_fit_lag(n);
-    o.window = window;
-    const auto fit = shared_exponential_fit(o);
+    const auto fit = order_1_5_fit(n, window);
     SCOPED_TRACE("n0 = " + std::to_string(fit->window));
     FastHistory whole(fit, d, n), ahead(fit, d, n);
     whole.set_threads(1);
@@ -740,6 +747,72 @@ TEST(FastHistory, PushesAheadByGroupsArePushesBitForBit) {
   EXPECT_THROW(team.set_rows_ahead(true), std::logic_error);
   DirectHistory direct(1.5, d, 10);
   EXPECT_THROW(direct.set_rows_ahead(true), std::logic_error);
+}
+
+// A team of two runs the next push ahead by row groups (fast_history.hpp, configure_threads): its
+// thread runs one group's recursions and older windows for four pushes a push. The sums are those
+// of one thread bit for bit at every push; a checkpoint taken at each push of the groups' cycle —
+// among them the state with the next push's passes planned, four pushes ready in one group
+// ('fast.later' = 3) — restores on one thread and on two and continues bit for bit; the team
+// switched to one thread and back mid-run changes nothing; with a window that allows no groups of
+// four (n0 = 3) the team runs one push ahead, as before.
+TEST(FastHistory, TeamOfTwoRunsAheadByGroupsBitForBit) {
+  // d (K + n0) ≥ kRunAheadWork: a team of two when asked; d not a multiple of 8, so that the last
+  // group's rows are not whole cache lines.
+  const Eigen::Index d = 1203;
+  const std::size_t n = 160;
+  const Eigen::MatrixXd xs = rough_sequence(n, d, 59u);
+  for (const std::size_t window : {std::size_t{0}, std::size_t{8}, std::size_t{3}}) {
+    const auto fit = order_1_5_fit(n, window);
+    const std::size_t n0 = fit->window;
+    SCOPED_TRACE("n0 = " + std::to_string(n0));
+    FastHistory one(fit, d, n), two(fit, d, n);
+    one.set_threads(1);
+    two.set_threads(2);
+    std::vector<Eigen::VectorXd> sums;
+    std::vector<std::string> saved;  // after pushes n0 + 40 … n0 + 43
+    std::size_t most_later = 0;
+    Eigen::VectorXd s_one(d), s(d);
+    for (std::size_t k = 0; k < n; ++k) {
+      const Eigen::VectorXd x = xs.col(static_cast<Eigen::Index>(k));
+      if (k == n0 + 60) two.set_threads(1);
+      if (k == n0 + 63) two.set_threads(2);
+      one.push(x);
+      two.push(x);
+      one.sum(s_one);
+      two.sum(s);
+      sums.push_back(s_one);
+      ASSERT_TRUE((s.array() == s_one.array()).all()) << "k = " << k;
+      if (k >= n0 + 40 && k < n0 + 44) {
+        CountCapture capture("fast.later");
+        two.visit_state(capture);
+        most_later = std::max(most_later, capture.value());
+        StateWriter writer;
+        two.visit_state(writer);
+        saved.push_back(writer.bytes());
+      }
+    }
+    // Counted since the last set_threads: every push from there ran with the team.
+    EXPECT_EQ(two.report().threads.team_pushes, n - (n0 + 63));
+    // Groups of four: the planned turn's pass makes four pushes ready; one push ahead: one.
+    EXPECT_EQ(most_later, n0 % 4 == 0 ? 3u : 0u);
+    for (std::size_t i = 0; i < saved.size(); ++i) {
+      for (const int threads : {1, 2}) {
+        FastHistory restored(fit, d, n);
+        restored.set_threads(threads);
+        StateReader reader(saved[i], "test state");
+        restored.visit_state(reader);
+        reader.finish();
+        for (std::size_t k = n0 + 41 + i; k < n; ++k) {
+          restored.push(xs.col(static_cast<Eigen::Index>(k)));
+          restored.sum(s);
+          ASSERT_TRUE((s.array() == sums[k].array()).all())
+              << "restored after push " << n0 + 40 + i << " on " << threads << " thread(s), push "
+              << k;
+        }
+      }
+    }
+  }
 }
 
 TEST(FastHistory, ShortCapacityIsExact) {

@@ -36,6 +36,14 @@
 // are those of the one-thread push in every row, so the sums are bit for bit the same. The thread
 // count, the second thread and their protocol are internal::RunAhead's (internal/run_ahead.hpp),
 // shared with FastBlockHistory.
+//
+// When n0 is a multiple of 4, what the second thread runs for push k+1 is a group's pass (the
+// rows by groups of set_rows_ahead): the rows fall into four groups, and at each push the thread
+// runs, for the group whose turn it is, the recursions and older windows of the next four pushes
+// in one pass (push k+4's older window ends with x̃_k, already in the ring). That is the
+// one-thread four-push pass, a quarter of the rows at a time: one push a pass for every row moved
+// the whole state through the caches each push and took about twice the thread's time (d = 1000,
+// bench/RESULTS.md 2026-12-03), so that the caller waited for it.
 #pragma once
 
 #include <Eigen/Dense>
@@ -166,6 +174,7 @@ class FastHistory final : public History, private internal::RunAheadJob {
   // pushes from size_ on whose tails are complete ("ready"); the passes that begin_row_push()
   // chose for rows_ahead() (a group's rows, its first push after size_, the pushes).
   bool by_groups_ = false;
+  bool groups_by_team_ = false;  // the groups are the team of two's (configure_threads)
   int groups_ = 1;
   std::array<Eigen::Index, kAheadGroups + 1> group_bounds_{};
   std::array<int, kAheadGroups> group_ready_{};
@@ -180,6 +189,11 @@ class FastHistory final : public History, private internal::RunAheadJob {
   internal::RunAhead run_ahead_;
 
   void configure_threads(int threads);
+  // Pushes by row groups on or off (the groups brought even first).
+  void switch_groups(bool on);
+  // The passes of the push size_ (group_passes_): the group whose turn it is, and any group whose
+  // ready pushes ran out.
+  void plan_group_passes();
   // Rows [lo, hi) of a group's pass: the recursions and older windows of pushes size_ + from …
   // size_ + from + steps − 1.
   void group_pass(const GroupPass& pass, Eigen::Index lo, Eigen::Index hi);
