@@ -800,8 +800,8 @@ void FastHistory::visit_state(StateArchive& archive) {
   // The next push's tail, then those of the later pushes that a pass has run (fast.later of them,
   // in order; the record has room for kPassSteps − 1 — a team of two by groups has planned the
   // next push's passes, up to kPassSteps pushes ready — zeros beyond): the same records whichever
-  // tails_ column each sits in. (Checkpoints written before 2026-12-03 hold kPassSteps − 2 later
-  // tails in 'fast.later_tails' and are refused by name.)
+  // tails_ column each sits in. (Checkpoints of the former layout, kPassSteps − 2 later tails in
+  // 'fast.later_tails', are refused by name.)
   Eigen::MatrixXd in_order(ring_.rows(), kPassSteps);
   for (Eigen::Index s = 0; s < in_order.cols(); ++s)
     in_order.col(s) = tails_.col((tail_column_ + s) % kPassSteps);

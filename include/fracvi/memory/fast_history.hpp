@@ -43,7 +43,7 @@
 // in one pass (push k+4's older window ends with x̃_k, already in the ring). That is the
 // one-thread four-push pass, a quarter of the rows at a time: one push a pass for every row moved
 // the whole state through the caches each push and took about twice the thread's time (d = 1000,
-// bench/RESULTS.md 2026-12-03), so that the caller waited for it.
+// bench/RESULTS.md 2026-12-02, fifth session), so that the caller waited for it.
 #pragma once
 
 #include <Eigen/Dense>
