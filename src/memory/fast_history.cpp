@@ -236,6 +236,72 @@ void older_window_block(const internal::FastHistoryBlock& blk) {
   }
 }
 
+// The older windows of the pushes k … k + steps − 1 of one pass (pushes[s] is push k + s's block),
+// for n0 = 4 (kGroups + 1) — the default windows, 16 (Grünwald–Letnikov) and 32 (BDF2): push
+// k + s's window value c is push k's value c + s, so one loop over the rows loads the
+// 4 kGroups + steps − 1 older values once for all the pushes, instead of each push's 4 kGroups
+// columns and its tail kGroups times. Each push's additions are older_window_block's in the same
+// order (a group of four summed pairwise, onto the tail oldest group first): the same numbers.
+// Other windows run older_window_block push by push.
+template <int kGroups, int kSteps>
+[[gnu::always_inline]] inline void older_windows_of(const internal::FastHistoryBlock* pushes) {
+  constexpr int kOlder = 4 * kGroups, kColumns = kOlder + kSteps - 1;
+  const Eigen::Index n = pushes[0].rows;
+  const double* col[kColumns];
+  for (int c = 0; c < kColumns; ++c) col[c] = internal::window_column(pushes[0], c);
+  double* tail[kSteps];
+  for (int s = 0; s < kSteps; ++s) tail[s] = pushes[s].tail;
+  double h[kOlder];
+  for (int c = 0; c < kOlder; ++c) h[c] = pushes[0].head_reversed[c];
+  FRACVI_INDEPENDENT_ITERATIONS
+  for (Eigen::Index i = 0; i < n; ++i) {
+    double v[kColumns];
+#pragma GCC unroll 64
+    for (int c = 0; c < kColumns; ++c) v[c] = col[c][i];
+#pragma GCC unroll 4
+    for (int s = 0; s < kSteps; ++s) {
+      double t = tail[s][i];
+#pragma GCC unroll 16
+      for (int g = 0; g < kOlder; g += 4) {
+        t += (h[g] * v[s + g] + h[g + 1] * v[s + g + 1]) +
+             (h[g + 2] * v[s + g + 2] + h[g + 3] * v[s + g + 3]);
+      }
+      tail[s][i] = t;
+    }
+  }
+}
+
+template <int kGroups, int kSteps>
+FRACVI_HOT_KERNEL void older_windows_avx2(const internal::FastHistoryBlock* pushes) {
+  older_windows_of<kGroups, kSteps>(pushes);
+}
+
+// The same with 32 vector registers (x86-64-v4, 256-bit vectors: internal/vectorize.hpp), which
+// hold n0 = 16's 15 older values, 12 weights and a row vector's tail (AVX2's 16 spill them).
+template <int kGroups, int kSteps>
+FRACVI_WIDE_REGISTERS_KERNEL void older_windows_wide(const internal::FastHistoryBlock* pushes) {
+  older_windows_of<kGroups, kSteps>(pushes);
+}
+
+template <int kGroups>
+void older_windows_here(const internal::FastHistoryBlock* pushes, int steps) {
+  const bool wide = internal::wide_registers();
+  switch (steps) {
+    case 2:
+      return wide ? older_windows_wide<kGroups, 2>(pushes) : older_windows_avx2<kGroups, 2>(pushes);
+    case 3:
+      return wide ? older_windows_wide<kGroups, 3>(pushes) : older_windows_avx2<kGroups, 3>(pushes);
+    default:
+      return wide ? older_windows_wide<kGroups, 4>(pushes) : older_windows_avx2<kGroups, 4>(pushes);
+  }
+}
+
+void older_windows_of_pass(const internal::FastHistoryBlock* pushes, int steps) {
+  if (steps >= 2 && pushes[0].window == 16) return older_windows_here<3>(pushes, steps);
+  if (steps >= 2 && pushes[0].window == 32) return older_windows_here<7>(pushes, steps);
+  for (int s = 0; s < steps; ++s) older_window_block(pushes[s]);
+}
+
 // x̃_k into the ring (its slot held x̃_{k−n0}, read by the recursions before), and the sum = the
 // tail with the older window + the last addition: the last group of four with x̃_k as its fourth
 // value, or the last remainder term c_0 x̃_k.
@@ -621,7 +687,7 @@ void FastHistory::group_pass(const GroupPass& pass, Eigen::Index lo, Eigen::Inde
     } else {
       recursion_block_steps(pushes[0], pass.steps, leaving, tails);
     }
-    for (int s = 0; s < pass.steps; ++s) older_window_block(pushes[s]);
+    older_windows_of_pass(pushes, pass.steps);
   }
 }
 
@@ -693,18 +759,26 @@ void FastHistory::push_rows(Eigen::Index lo, Eigen::Index hi) {
         tails[s] = tails_.col(column(s)).data() + b;
       }
       recursion_block_steps(rows, p.steps, leaving, tails);
-      older_window_block(rows);
-    } else if (!p.turn.ahead) {
+      // The pass's older windows (push k + s's starts at ring column (k + s + 1) mod n0): with n0
+      // a multiple of 4 they end with x̃_{k+s−4} and all go before x̃_k enters; otherwise the pass
+      // covers two pushes and the second one's ends with x̃_k, after it.
+      internal::FastHistoryBlock pushes[kPassSteps];
+      pushes[0] = rows;
+      for (int s = 1; s < p.steps; ++s) {
+        const auto window_first = static_cast<Eigen::Index>((size_ + 1 + s) % n0);
+        pushes[s] = block(b, n, terms, p.slot, window_first, nullptr, column(s));
+      }
+      const bool before_newest = newest_start(window_) == window_ - 4;
+      older_windows_of_pass(pushes, before_newest ? p.steps : 1);
+      newest_block(rows);
+      if (!before_newest) older_windows_of_pass(pushes + 1, p.steps - 1);
+      continue;
+    }
+    if (!p.turn.ahead) {
       recursion_block(rows);  // with no recursions yet (terms = 0), a zero tail
       older_window_block(rows);
     }
     newest_block(rows);
-    // The later pushes' older windows (push k + s's starts at ring column (k + s + 1) mod n0),
-    // now that x̃_k is in these rows of the ring.
-    for (int s = 1; s < p.steps; ++s) {
-      const auto window_first = static_cast<Eigen::Index>((size_ + 1 + s) % n0);
-      older_window_block(block(b, n, terms, p.slot, window_first, nullptr, column(s)));
-    }
   }
 }
 

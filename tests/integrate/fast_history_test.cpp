@@ -31,6 +31,7 @@
 #include "fracvi/core/state_archive.hpp"
 #include "fracvi/fractional/exponential_fit.hpp"
 #include "fracvi/fractional/weights.hpp"
+#include "fracvi/internal/vectorize.hpp"
 #include "fracvi/memory/fast_history.hpp"
 #include "fracvi/memory/history.hpp"
 
@@ -442,6 +443,46 @@ TEST(FastHistory, SmallSystemsSumInTheOrderOfLargeOnes) {
       }
     }
   }
+}
+
+TEST(FastHistory, PassOlderWindowsAreThePushByPushOnesBitForBit) {
+  // With the default windows (n0 = 16 for Grünwald–Letnikov, 32 for BDF2) a four-push pass forms
+  // its pushes' older windows in one loop over the rows (fast_history.cpp, older_windows_of), in
+  // an x86-64-v4 variant (32 registers) where the CPU has it and the AVX2 one otherwise: both
+  // give, at every push, the bits of the same rows summed push by push across the terms (d = 3:
+  // push_rows_across_terms, whose older window is the single-push loop) — the first rows and the
+  // last, past the row vectors. On a CPU without AVX-512 both runs take the AVX2 kernel (said
+  // below).
+  std::printf("x86-64-v4 variants %s\n",
+              internal::wide_registers_available() ? "available" : "not available here");
+  const Eigen::Index d = 37;  // row vectors and a remainder
+  const std::size_t n = 300;
+  const Eigen::MatrixXd xs = rough_sequence(n, d, 61u);
+  for (const auto& [scheme, window] : {std::pair{CqScheme::kGrunwaldLetnikov, std::size_t{16}},
+                                       std::pair{CqScheme::kBdf2, std::size_t{32}}}) {
+    const ConvolutionQuadrature q{scheme, 1.5, 0};
+    for (const bool wide : {false, true}) {
+      internal::wide_registers_allowed = wide;
+      const auto pass = make_fast_history(q, d, n);
+      const auto first_rows = make_fast_history(q, 3, n), last_rows = make_fast_history(q, 3, n);
+      ASSERT_EQ(pass->report().window, window);
+      pass->set_threads(1);
+      Eigen::VectorXd s_pass(d), s_first(3), s_last(3);
+      for (std::size_t k = 0; k < n; ++k) {
+        const Eigen::VectorXd x = xs.col(static_cast<Eigen::Index>(k));
+        pass->push(x);
+        first_rows->push(x.head(3));
+        last_rows->push(x.tail(3));
+        pass->sum(s_pass);
+        first_rows->sum(s_first);
+        last_rows->sum(s_last);
+        ASSERT_TRUE((s_pass.head(3).array() == s_first.array()).all() &&
+                    (s_pass.tail(3).array() == s_last.array()).all())
+            << "n0 = " << window << ", " << (wide ? "x86-64-v4" : "AVX2") << " variant, push " << k;
+      }
+    }
+  }
+  internal::wide_registers_allowed = true;
 }
 
 // Keeps the values of one record of a saved state.
