@@ -8,6 +8,7 @@
 #include <string>
 #include <utility>
 
+#include "fracvi/internal/float_environment.hpp"
 #include "fracvi/internal/parallel.hpp"
 #include "fracvi/internal/ring_window.hpp"
 #include "fracvi/internal/vectorize.hpp"
@@ -589,6 +590,7 @@ bool FastHistory::pushes_rows() const {
 
 void FastHistory::begin_row_push(const double* x_tilde) {
   assert(size_ < capacity_ && ring_.rows() >= kAcrossTermsBelow);
+  push_flush_bits_ = internal::flush_bits();
   const auto n0 = static_cast<std::size_t>(window_);
   RowPush& p = pending_;
   p.entering = x_tilde;
@@ -696,6 +698,11 @@ void FastHistory::even_groups() {
   if (most > kPassSteps) {
     throw std::logic_error("FastHistory: a push begun by rows was not ended");
   }
+  // These passes would have run in the pushes, with their flush bits (the step's: IntegratorOptions
+  // ::flush_subnormals); a checkpoint or a change of threads between steps runs them here, outside
+  // the step. Without the pushes' bits, values in the subnormal range came out differently: a run
+  // of the example chain on two threads that wrote checkpoints differed from one that did not.
+  const internal::FlushBitsAdopted as_pushed(push_flush_bits_);
   for (int q = 0; q < groups_; ++q) {
     if (group_ready_[q] < most) {
       const GroupPass pass{group_bounds_[q], group_bounds_[q + 1], group_ready_[q],

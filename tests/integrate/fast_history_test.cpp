@@ -31,6 +31,7 @@
 #include "fracvi/core/state_archive.hpp"
 #include "fracvi/fractional/exponential_fit.hpp"
 #include "fracvi/fractional/weights.hpp"
+#include "fracvi/internal/float_environment.hpp"
 #include "fracvi/internal/vectorize.hpp"
 #include "fracvi/memory/fast_history.hpp"
 #include "fracvi/memory/history.hpp"
@@ -853,6 +854,40 @@ TEST(FastHistory, TeamOfTwoRunsAheadByGroupsBitForBit) {
         }
       }
     }
+  }
+}
+
+// A checkpoint taken between steps brings the groups of a team of two even (the passes the next
+// pushes would have run) outside the step, whose subnormal numbers are flushed (IntegratorOptions
+// ::flush_subnormals): those passes must run with the pushes' flush bits, or values in the
+// subnormal range come out differently. Here every push runs flushed, as in a step, the
+// checkpoints not, on inputs of 10^-306 whose recursions and window products are subnormal: the
+// sums stay those of one thread that was never checkpointed, bit for bit.
+TEST(FastHistory, ATeamsCheckpointBetweenStepsKeepsThePushesFlushBits) {
+  if (!internal::kCanFlushSubnormals) GTEST_SKIP() << "no flush-to-zero on this architecture";
+  const Eigen::Index d = 1203;
+  const std::size_t n = 120;
+  const Eigen::MatrixXd xs = 1e-306 * rough_sequence(n, d, 67u);
+  FastHistory one(1.5, d, n), two(1.5, d, n);
+  one.set_threads(1);
+  two.set_threads(2);
+  const std::size_t n0 = two.window();
+  ASSERT_EQ(n0 % 4, 0u);  // the team runs ahead by groups
+  Eigen::VectorXd s_one(d), s_two(d);
+  for (std::size_t k = 0; k < n; ++k) {
+    const Eigen::VectorXd x = xs.col(static_cast<Eigen::Index>(k));
+    {
+      const internal::SubnormalsFlushed flushed(true);
+      one.push(x);
+      two.push(x);
+    }
+    if (k >= n0 + 20 && k < n0 + 24) {
+      StateWriter writer;
+      two.visit_state(writer);
+    }
+    one.sum(s_one);
+    two.sum(s_two);
+    ASSERT_TRUE((s_one.array() == s_two.array()).all()) << "push " << k;
   }
 }
 

@@ -50,6 +50,22 @@ inline void adopt_flush_bits(unsigned bits) noexcept {
   if (flush_bits() != bits) set_flush_bits(bits);
 }
 
+/// While it lives, this thread computes with the flush bits `bits` (those of the computation whose
+/// numbers its work must reproduce, e.g. the pushes of a history evened out for a checkpoint
+/// between steps, outside the step's SubnormalsFlushed); then its own bits again.
+class FlushBitsAdopted {
+ public:
+  explicit FlushBitsAdopted(unsigned bits) noexcept : saved_(flush_bits()) {
+    if (saved_ != bits) set_flush_bits(bits);
+  }
+  ~FlushBitsAdopted() { adopt_flush_bits(saved_); }
+  FlushBitsAdopted(const FlushBitsAdopted&) = delete;
+  FlushBitsAdopted& operator=(const FlushBitsAdopted&) = delete;
+
+ private:
+  unsigned saved_;
+};
+
 /// While it lives, this thread flushes subnormals (when `flush`); then its own bits again. A
 /// thread that already flushes (a nested guard, or a caller that set FTZ and DAZ itself) is left
 /// as it is.

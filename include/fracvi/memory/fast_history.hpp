@@ -184,6 +184,9 @@ class FastHistory final : public History, private internal::RunAheadJob {
   };
   std::array<GroupPass, kAheadGroups> group_passes_{};
   int group_pass_count_ = 0;
+  // The flush bits (internal/float_environment.hpp) of the last push: even_groups() runs its
+  // passes with them.
+  unsigned push_flush_bits_ = 0;
   // The thread count and the run-ahead thread (last: its thread is joined before the arrays it
   // writes are destroyed).
   internal::RunAhead run_ahead_;
