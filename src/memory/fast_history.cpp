@@ -238,7 +238,7 @@ void older_window_block(const internal::FastHistoryBlock& blk) {
 }
 
 // The older windows of the pushes k … k + steps − 1 of one pass (pushes[s] is push k + s's block),
-// for n0 = 4 (kGroups + 1) — the default windows, 16 (Grünwald–Letnikov) and 32 (BDF2): push
+// for n0 = 4 kGroups + 4 — the default windows, 16 (Grünwald–Letnikov) and 32 (BDF2): push
 // k + s's window value c is push k's value c + s, so one loop over the rows loads the
 // 4 kGroups + steps − 1 older values once for all the pushes, instead of each push's 4 kGroups
 // columns and its tail kGroups times. Each push's additions are older_window_block's in the same
