@@ -4,18 +4,25 @@
 //
 // Two threads pinned to CPUs 0 and 1 take turns through one atomic: each reads the d doubles the
 // other wrote last (a sum) and writes d of its own. Prints the round trip in µs, and the same
-// loop on one thread (no hand-over) for comparison. Arguments (optional):
+// loop on one thread (no hand-over) for comparison. Then whether CPUs 0 and 1 are two cores or two
+// hardware threads of one core (as a virtual machine's vCPUs may be, whatever lscpu says): 32
+// independent multiply–add chains (bound by the core's arithmetic, not by latency) run alone on
+// CPU 0, then on CPUs 0 and 1 at once; two hardware threads of one core share its arithmetic units
+// and each runs at about half the rate. Arguments (optional):
 //   core_handover [d=1000] [rounds=100000]
 // Not part of the tests (bench/RESULTS.md records the numbers).
 #include <pthread.h>
 #include <sched.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <thread>
 #include <vector>
+
+#include "fracvi/internal/vectorize.hpp"
 
 namespace {
 
@@ -32,6 +39,25 @@ double take_turn(const std::vector<double>& from, std::vector<double>& to) {
   for (const double v : from) sum += v;
   for (std::size_t i = 0; i < to.size(); ++i) to[i] = sum + static_cast<double>(i);
   return sum;
+}
+
+// 32 independent chains a ← a m + c, n rounds (vectorised: the history's kernels' target); returns
+// the multiply–adds per second.
+FRACVI_HOT_KERNEL
+double multiply_add_rate(long n, double* out) {
+  double acc[32];
+  for (int i = 0; i < 32; ++i) acc[i] = 1.0 + 1e-3 * i;
+  const double m = 0.9999999, c = 1e-9;
+  const auto start = std::chrono::steady_clock::now();
+  for (long r = 0; r < n; ++r) {
+    for (int i = 0; i < 32; ++i) acc[i] = acc[i] * m + c;
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  double sum = 0.0;
+  for (const double a : acc) sum += a;
+  *out = sum;
+  return 32.0 * static_cast<double>(n) / seconds;
 }
 
 }  // namespace
@@ -84,5 +110,34 @@ int main(int argc, char** argv) {
               alone / static_cast<double>(rounds) * 1e6);
   std::printf("two cores, handed over:      %.3f us a round trip\n",
               handed / static_cast<double>(rounds) * 1e6);
+
+  // Arithmetic throughput alone and on both CPUs at once.
+  const long n = 20000000;
+  double out = 0.0;
+  pin_to(0);
+  const double alone_rate = multiply_add_rate(n, &out);
+  std::atomic<int> ready{0};
+  double rate1 = 0.0, out1 = 0.0;
+  std::thread second([&] {
+    pin_to(1);
+    ready.fetch_add(1);
+    while (ready.load() < 2) {
+    }
+    rate1 = multiply_add_rate(n, &out1);
+  });
+  ready.fetch_add(1);
+  while (ready.load() < 2) {
+  }
+  const double rate0 = multiply_add_rate(n, &out);
+  second.join();
+  sink = sink + out + out1;
+  const double share = std::min(rate0, rate1) / alone_rate;
+  std::printf(
+      "multiply-adds alone on CPU 0: %.2f G/s; on CPUs 0 and 1 at once: %.2f and %.2f G/s "
+      "(%.2f of alone)\n",
+      alone_rate * 1e-9, rate0 * 1e-9, rate1 * 1e-9, share);
+  std::printf("%s\n", share < 0.7   ? "CPUs 0 and 1 share one core's arithmetic (hardware threads)"
+                      : share > 0.9 ? "CPUs 0 and 1 are separate cores"
+                                    : "CPUs 0 and 1: in between (a busy machine?)");
   return 0;
 }
