@@ -52,40 +52,38 @@ inline void adopt_flush_bits(unsigned bits) noexcept {
 
 /// While it lives, this thread computes with the flush bits `bits` (those of the computation whose
 /// numbers its work must reproduce, e.g. the pushes of a history evened out for a checkpoint
-/// between steps, outside the step's SubnormalsFlushed); then its own bits again.
+/// between steps, outside the step's SubnormalsFlushed); then its own bits again. MXCSR is written
+/// only when the bits differ, on entry and on exit.
 class FlushBitsAdopted {
  public:
-  explicit FlushBitsAdopted(unsigned bits) noexcept : saved_(flush_bits()) {
-    if (saved_ != bits) set_flush_bits(bits);
+  explicit FlushBitsAdopted(unsigned bits) noexcept { adopt(bits); }
+  ~FlushBitsAdopted() {
+    if (restore_) set_flush_bits(saved_);
   }
-  ~FlushBitsAdopted() { adopt_flush_bits(saved_); }
   FlushBitsAdopted(const FlushBitsAdopted&) = delete;
   FlushBitsAdopted& operator=(const FlushBitsAdopted&) = delete;
 
- private:
-  unsigned saved_;
-};
-
-/// While it lives, this thread flushes subnormals (when `flush`); then its own bits again. A
-/// thread that already flushes (a nested guard, or a caller that set FTZ and DAZ itself) is left
-/// as it is.
-class SubnormalsFlushed {
- public:
-  explicit SubnormalsFlushed(bool flush) noexcept {
-    if (!flush) return;
+ protected:
+  FlushBitsAdopted() noexcept = default;  // adopts nothing until adopt()
+  void adopt(unsigned bits) noexcept {
     saved_ = flush_bits();
-    restore_ = saved_ != kFlushSubnormalBits;
-    if (restore_) set_flush_bits(kFlushSubnormalBits);
+    restore_ = saved_ != bits;
+    if (restore_) set_flush_bits(bits);
   }
-  ~SubnormalsFlushed() {
-    if (restore_) set_flush_bits(saved_);
-  }
-  SubnormalsFlushed(const SubnormalsFlushed&) = delete;
-  SubnormalsFlushed& operator=(const SubnormalsFlushed&) = delete;
 
  private:
   unsigned saved_ = 0;
   bool restore_ = false;
+};
+
+/// While it lives, this thread flushes subnormals (when `flush`); then its own bits again. A
+/// thread that already flushes (a nested guard, or a caller that set FTZ and DAZ itself) is left
+/// as it is; with flush = false MXCSR is not even read.
+class SubnormalsFlushed : private FlushBitsAdopted {
+ public:
+  explicit SubnormalsFlushed(bool flush) noexcept {
+    if (flush) adopt(kFlushSubnormalBits);
+  }
 };
 
 }  // namespace fracvi::internal
