@@ -36,7 +36,11 @@ def run(fracvi, problem, sets):
         for key, value in sets.items():
             args += ["--set", f"{key}={value}"]
         done = subprocess.run(args, capture_output=True, text=True, check=False)
-        with open(os.path.join(out, "summary.json"), encoding="utf-8") as f:
+        path = os.path.join(out, "summary.json")
+        if not os.path.exists(path):
+            raise RuntimeError(f"{' '.join(args)}: exit {done.returncode}, no summary.json\n"
+                               f"{done.stderr}")
+        with open(path, encoding="utf-8") as f:
             summary = json.load(f)
     if done.returncode != 0 or summary.get("status") != "success":
         raise RuntimeError(f"{' '.join(args)}: exit {done.returncode}, status "
