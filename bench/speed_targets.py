@@ -2,7 +2,9 @@
 
     /usr/bin/python3 bench/speed_targets.py [build/release] [--rounds R] [--long]
 
-Every figure is a fresh `fracvi run` process, as a user's run is; the configurations compared with
+Every figure is a fresh `fracvi run` process, as a user's run is (with `--no-plot`: the plots
+are drawn after the steps and no figure times them, as bench/history_crossover.py does); the
+configurations compared with
 each other (one thread against the thread count the program chooses, `method.threads = 0`) run
 in alternating order within each round, so that a host's slow phase hits both. Per step means
 summary.json's stepping_wall_seconds / N (the fit and the factorisations are set-up and left out;
@@ -32,7 +34,7 @@ OSCILLATOR = os.path.join(ROOT, "examples", "viscoelastic_caputo.toml")
 def run(fracvi, problem, sets):
     """One `fracvi run`; returns summary.json (raises with the output if the run failed)."""
     with tempfile.TemporaryDirectory() as out:
-        args = [fracvi, "run", problem, "--out", out]
+        args = [fracvi, "run", problem, "--out", out, "--no-plot", "--quiet"]
         for key, value in sets.items():
             args += ["--set", f"{key}={value}"]
         done = subprocess.run(args, capture_output=True, text=True, check=False)
